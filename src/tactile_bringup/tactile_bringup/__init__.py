@@ -1,0 +1,1 @@
+"""Configuration, launch, MCAP recorder/player, exploration runner and benchmarks."""

@@ -1,0 +1,54 @@
+"""The ``main()`` every node of the graph shares.
+
+SIGINT and SIGTERM during ``spin`` raise ``KeyboardInterrupt`` or
+``ExternalShutdownException``; both end the node cleanly, ``on_shutdown``
+hooks run (e.g. a recorder finalises its file), and the context is shut down.
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import Callable, Optional, Sequence
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, Executor, SingleThreadedExecutor
+from rclpy.node import Node
+
+
+def run_node(
+    make_node: Callable[[], Node],
+    args: Optional[Sequence[str]] = None,
+    executor: Optional[Callable[[], Executor]] = None,
+) -> int:
+    """Init rclpy, build the node, spin until SIGINT/SIGTERM, shut down.
+
+    A node whose constructor raises ``ValueError`` (bad parameters, a missing
+    file) logs the message and exits with status 2, without a traceback.
+    If the node has a ``close()`` method it is called before the node is
+    destroyed, whatever ended the spin.
+
+    Returns:
+        the process exit status.
+    """
+    rclpy.init(args=args if args is not None else sys.argv)
+    node = None
+    status = 0
+    try:
+        try:
+            node = make_node()
+        except ValueError as exc:  # configuration errors: a message, not a traceback
+            rclpy.logging.get_logger(getattr(make_node, "__name__", "node")).fatal(str(exc))
+            return 2
+        ex = executor() if executor is not None else SingleThreadedExecutor()
+        ex.add_node(node)
+        ex.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if callable(close):
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status

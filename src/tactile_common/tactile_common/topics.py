@@ -1,0 +1,34 @@
+"""Default topic names and frame ids of the graph (see the README topic table).
+
+Every node takes these as defaults; users remap them with
+``--ros-args -r /old:=/new``.
+"""
+
+# Frames. ``world`` is the robot base frame: x forward (towards the object),
+# z up, origin at the arm base on the table top.
+WORLD_FRAME = "world"
+FINGERTIP_FRAME = "fingertip"
+
+# Sensing.
+CONTACTS = "/tactile/contacts"
+TAXELS = "/tactile/taxels"
+DIAGNOSTICS = "/diagnostics"
+
+# Estimation.
+VARIANCE_MAP = "/gpis/variance_map"
+OCCUPANCY = "/gpis/occupancy"
+SURFACE = "/gpis/surface"
+
+# Planning.
+GOAL = "/planner/goal"
+PATH = "/planner/path"
+
+# Arm.
+JOINT_TRAJECTORY = "/joint_trajectory_controller/joint_trajectory"
+JOINT_STATES = "/joint_states"
+FINGERTIP_POSE = "/arm/fingertip_pose"
+ESTOP = "/arm/estop"
+TOUCH_DONE = "/arm/touch_done"
+
+# Simulation.
+CLOCK = "/clock"

@@ -1,0 +1,1 @@
+"""Tactile sensor protocol and driver node, Pinocchio 7-DOF arm commander node."""

@@ -1,0 +1,1 @@
+"""Gaussian-process implicit surface (ROS-free core) and the GPIS estimator node."""
