@@ -1,0 +1,312 @@
+"""ShapeEstimator: the GPIS facade shared by the estimator node and the offline loop.
+
+World frame, metres. In 2D the field lives in the x-y plane at ``plane_z_m`` (points
+are (x, y); z is ignored on input and set to ``plane_z_m`` on output). In 3D the
+table top z = 0 bounds the object: the estimated solid is clipped to z >= 0
+(``inside`` is False below the table) and candidates lie above
+``candidates.table_margin_m``.
+
+Observations (label 1 contact, 0 free space, ``tactile_common.fields``):
+  contact:    f(x) = 0 (noise ``noise.contact_var_m2``) and, if ``use_normals`` and a
+              unit normal n is given, grad f(x) = n (noise ``noise.normal_var``);
+  free space: f(x) = ``free_space.value_m`` (noise ``noise.free_space_var_m2``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping, Optional
+
+import numpy as np
+from scipy.special import ndtr
+
+from tactile_common.fields import (
+    KIND_CANDIDATE,
+    KIND_LATTICE,
+    LABEL_CONTACT,
+    LABEL_FREE_SPACE,
+    VARIANCE_MAP_DTYPE,
+)
+
+from .export import export_level_set
+from .gp import GPIS, FactorError
+from .kernels import KERNEL_TYPES, make_kernel
+from .levelset import LevelSet, farthest_point_subsample, lattice_points, zero_level_set
+from .prior import sphere_mean, zero_mean
+
+#: name -> (default, description). The node declares exactly these ROS parameters;
+#: ``ShapeEstimator.from_params`` takes a dict with these keys (missing keys: default).
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "mode": ("2d", "'2d' (contour at plane_z_m) or '3d' (full surface)"),
+    "frame_id": ("world", "frame of contacts and maps"),
+    "workspace.min_m": ([0.35, -0.15, 0.0], "workspace box lower corner x, y, z (m)"),
+    "workspace.max_m": ([0.65, 0.15, 0.22], "workspace box upper corner x, y, z (m)"),
+    "plane_z_m": (0.06, "2D: height of the estimated contour (m)"),
+    "lattice.points_per_axis_2d": (128, "2D lattice nodes per axis"),
+    "lattice.points_per_axis_3d": (48, "3D lattice nodes per axis"),
+    "kernel.type": ("thin_plate", f"one of {KERNEL_TYPES}"),
+    "kernel.length_scale_m": (0.05, "stationary kernels: length scale (m)"),
+    "kernel.signal_variance": (1.0, "stationary: signal variance (m^2); thin_plate: scale of k"),
+    "kernel.R_m": (0.0, "thin_plate R (m); 0 = workspace diagonal (above every data distance)"),
+    "noise.contact_var_m2": (1e-6, "variance of a contact's value f(x) = 0 (m^2)"),
+    "noise.normal_var": (1e-2, "variance of each component of a normal (gradient) observation"),
+    "noise.free_space_var_m2": (1e-4, "variance of a free-space observation (m^2)"),
+    "free_space.value_m": (0.01, "value of f observed at a free-space point (> 0, m)"),
+    "use_normals": (True, "use contact normals as gradient observations"),
+    "prior.type": ("auto", "'auto' (circle/sphere at the workspace centre), 'given' (centre_m, radius_m), 'none'"),
+    "prior.centre_m": ([0.5, 0.0, 0.06], "'given' prior: centre x, y, z (m); 2D uses x, y"),
+    "prior.radius_m": (0.05, "'given' prior: radius (m)"),
+    "candidates.max_count": (200, "maximum number of touch candidates (farthest-point subsample)"),
+    "candidates.table_margin_m": (0.005, "3D: candidates only above this height (m)"),
+    "duplicate_distance_m": (0.001, "reject an observation this close to an earlier one (m)"),
+    "jitter": (1e-10, "added to the covariance diagonal of every new observation"),
+}
+
+
+#: ROS parameters a params file may carry that are not the estimator's own.
+NODE_ONLY_PARAMETERS = ("use_sim_time",)
+
+
+def load_params(path: str | Path, node_name: str = "gpis_estimator") -> dict[str, Any]:
+    """The ``<node_name>: ros__parameters:`` section of a ROS params YAML, flattened to
+    dotted names (``kernel: {type: x}`` -> ``kernel.type``)."""
+    import yaml
+
+    with open(path) as fh:
+        doc = yaml.safe_load(fh) or {}
+    section = (doc.get(node_name) or doc.get("/**") or {}).get("ros__parameters")
+    if section is None:
+        raise ValueError(f"{path}: no '{node_name}: ros__parameters:' section")
+    flat: dict[str, Any] = {}
+
+    def walk(prefix: str, d: Mapping[str, Any]) -> None:
+        for k, v in d.items():
+            name = f"{prefix}{k}"
+            if isinstance(v, Mapping):
+                walk(name + ".", v)
+            else:
+                flat[name] = v
+
+    walk("", section)
+    return flat
+
+
+class ShapeEstimator:
+    """GPIS shape estimate over a workspace lattice with touch candidates."""
+
+    def __init__(self, params: Optional[Mapping[str, Any]] = None) -> None:
+        p = {k: v[0] for k, v in PARAMETERS.items()}
+        params = {k: v for k, v in (params or {}).items() if k not in NODE_ONLY_PARAMETERS}
+        unknown = set(params) - set(p)
+        if unknown:
+            raise ValueError(f"unknown GPIS parameter(s) {sorted(unknown)}")
+        p.update(params)
+        self.params = p
+        mode = str(p["mode"]).lower()
+        if mode not in ("2d", "3d"):
+            raise ValueError(f"mode must be '2d' or '3d', got '{p['mode']}'")
+        self.dim = 2 if mode == "2d" else 3
+        lo = np.asarray(p["workspace.min_m"], float)
+        hi = np.asarray(p["workspace.max_m"], float)
+        if lo.shape != (3,) or hi.shape != (3,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            raise ValueError("workspace.min_m and workspace.max_m must be 3 finite numbers each")
+        if not (hi > lo).all():
+            raise ValueError(f"workspace.max_m {hi.tolist()} must exceed workspace.min_m {lo.tolist()}")
+        self.bounds_m = np.stack([lo, hi])[:, : self.dim]
+        self.plane_z_m = float(p["plane_z_m"])
+        n_axis = int(p["lattice.points_per_axis_2d" if self.dim == 2 else "lattice.points_per_axis_3d"])
+        if n_axis < 3:
+            raise ValueError(f"lattice needs at least 3 points per axis, got {n_axis}")
+        self.lattice_axes = [np.linspace(self.bounds_m[0, i], self.bounds_m[1, i], n_axis) for i in range(self.dim)]
+        self.lattice_shape = tuple(len(a) for a in self.lattice_axes)
+        self._lattice = lattice_points(self.lattice_axes)
+        diag = float(np.linalg.norm(self.bounds_m[1] - self.bounds_m[0]))
+        R = float(p["kernel.R_m"]) or diag
+        if str(p["kernel.type"]) == "thin_plate" and R < diag:
+            raise ValueError(f"kernel.R_m {R} must be at least the workspace diagonal {diag:.4f} m")
+        self.kernel = make_kernel(str(p["kernel.type"]), R_m=R, length_scale_m=float(p["kernel.length_scale_m"]),
+                                  signal_variance=float(p["kernel.signal_variance"]))
+        self.contact_var = _nonneg(p, "noise.contact_var_m2")
+        self.normal_var = _nonneg(p, "noise.normal_var")
+        self.free_var = _nonneg(p, "noise.free_space_var_m2")
+        self.free_value = float(p["free_space.value_m"])
+        if not self.free_value > 0:
+            raise ValueError(f"free_space.value_m must be > 0, got {self.free_value}")
+        self.use_normals = bool(p["use_normals"])
+        self.max_candidates = int(p["candidates.max_count"])
+        self.table_margin_m = float(p["candidates.table_margin_m"])
+        self.duplicate_distance_m = _nonneg(p, "duplicate_distance_m")
+        self.gp = GPIS(self.kernel, self.dim, self._prior(p), jitter=_nonneg(p, "jitter"))
+        self.gp.set_eval_points(self._lattice)
+        self.reset()
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "ShapeEstimator":
+        """Build from a dict keyed by the node's ROS parameter names (e.g. the
+        ``gpis_estimator: ros__parameters:`` section of config/gpis_estimator.yaml)."""
+        return cls(params)
+
+    def _prior(self, p: Mapping[str, Any]):
+        kind = str(p["prior.type"])
+        if kind == "none":
+            return zero_mean
+        if kind == "auto":
+            lo, hi = self.bounds_m
+            return sphere_mean(0.5 * (lo + hi), 0.25 * float((hi - lo).min()))
+        if kind == "given":
+            c = np.asarray(p["prior.centre_m"], float)
+            if c.shape != (3,):
+                raise ValueError("prior.centre_m must be 3 numbers (x, y, z)")
+            return sphere_mean(c[: self.dim], float(p["prior.radius_m"]))
+        raise ValueError(f"prior.type must be 'auto', 'given' or 'none', got '{kind}'")
+
+    # -- state ---------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget every observation (back to the prior)."""
+        self.gp.reset()
+        self._points = np.zeros((0, self.dim))
+        self.n_observations = 0
+        self.n_rejected = 0
+        self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
+
+    def add_observation(self, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], label: int) -> tuple[bool, str]:
+        """Add one contact (label 1) or free-space point (label 0), world frame.
+
+        Returns:
+            (accepted, reason): reason says why it was rejected ('' if accepted).
+        """
+        ok, reason = self._add(point_xyz, normal_xyz, label)
+        if not ok:
+            self.n_rejected += 1
+        return ok, reason
+
+    def _add(self, point_xyz, normal_xyz, label) -> tuple[bool, str]:
+        pt = np.asarray(point_xyz, float).ravel()
+        if pt.shape != (3,):
+            return False, f"point must have 3 coordinates, got {pt.shape[0]}"
+        x = pt[: self.dim]
+        if not np.isfinite(x).all():
+            return False, "non-finite point"
+        if (x < self.bounds_m[0]).any() or (x > self.bounds_m[1]).any():
+            return False, f"point {np.round(x, 4).tolist()} outside the workspace"
+        if label not in (LABEL_CONTACT, LABEL_FREE_SPACE):
+            return False, f"unknown label {label} (1 contact, 0 free space)"
+        if len(self._points):
+            d = float(np.sqrt(((self._points - x) ** 2).sum(1).min()))
+            if d < self.duplicate_distance_m:
+                return False, f"duplicate: {d * 1000:.2f} mm from an earlier observation"
+        try:
+            if label == LABEL_FREE_SPACE:
+                self.gp.add_observation(x, self.free_value, self.free_var)
+            else:
+                n = self._unit_normal(normal_xyz)
+                self.gp.add_observation(x, 0.0, self.contact_var, n, self.normal_var)
+        except FactorError as exc:
+            return False, f"rejected by the GP: {exc}"
+        self._points = np.vstack([self._points, x])
+        self.n_observations += 1
+        return True, ""
+
+    def _unit_normal(self, normal_xyz) -> Optional[np.ndarray]:
+        if not self.use_normals or normal_xyz is None:
+            return None
+        n = np.asarray(normal_xyz, float).ravel()[: self.dim]
+        norm = np.linalg.norm(n)
+        if n.shape != (self.dim,) or not np.isfinite(n).all() or norm < 0.5:
+            return None  # no usable normal (e.g. a 3D normal nearly vertical in 2D)
+        return n / norm
+
+    # -- queries -------------------------------------------------------------
+    def _xy(self, points: np.ndarray) -> np.ndarray:
+        P = np.atleast_2d(np.asarray(points, float))
+        if P.shape[1] < self.dim:
+            raise ValueError(f"points must have at least {self.dim} columns, got {P.shape[1]}")
+        return P[:, : self.dim]
+
+    def predict(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Posterior mean and variance of f at (N, dim) points."""
+        return self.gp.predict(self._xy(points))
+
+    def inside(self, points: np.ndarray) -> np.ndarray:
+        """(N,) bool: mean < 0 (in 3D also z >= 0: nothing below the table)."""
+        P = self._xy(points)
+        ins = self.gp.predict(P, return_var=False) < 0
+        if self.dim == 3:
+            ins &= P[:, 2] >= 0
+        return ins
+
+    def lattice_mean(self) -> np.ndarray:
+        """Posterior mean on the lattice, shaped ``lattice_shape``."""
+        return self.gp.eval_mean().reshape(self.lattice_shape)
+
+    def lattice_variance(self) -> np.ndarray:
+        """Posterior variance on the lattice, shaped ``lattice_shape``."""
+        return self.gp.eval_variance().reshape(self.lattice_shape)
+
+    def occupancy(self) -> np.ndarray:
+        """P(inside) = Phi(-mu / sigma) on the lattice, shaped ``lattice_shape``."""
+        sd = np.sqrt(np.maximum(self.lattice_variance(), 1e-300))
+        return ndtr(-self.lattice_mean() / sd)
+
+    def level_set(self) -> LevelSet:
+        """Zero level set of the lattice mean (2D segments / 3D triangles)."""
+        return self._map_and_level_set()[2]
+
+    def surface_points(self) -> np.ndarray:
+        """(K, 3) vertices of the estimated zero level set (2D: z = plane_z_m)."""
+        return self._to_xyz(self.level_set().vertices)
+
+    def map_array(self) -> np.ndarray:
+        """The variance map: lattice nodes (kind 0, C order) then candidates (kind 1)."""
+        return self._map_and_level_set()[1].copy()
+
+    def export_shape(self, path: str | Path) -> Path:
+        """Write the estimated shape: .csv contour (2D), .ply / .stl mesh (3D)."""
+        return export_level_set(path, self.level_set(), self.dim)
+
+    # -- map -----------------------------------------------------------------
+    def _to_xyz(self, P: np.ndarray) -> np.ndarray:
+        if self.dim == 3:
+            return P.copy()
+        return np.column_stack([P, np.full(len(P), self.plane_z_m)])
+
+    def _map_and_level_set(self) -> tuple[int, np.ndarray, LevelSet]:
+        if self._cache is not None and self._cache[0] == self.gp.n:
+            return self._cache
+        mean = self.lattice_mean()
+        var = self.gp.eval_variance()
+        ls = zero_level_set(mean, self.lattice_axes)
+        # lattice normals: central differences of the lattice mean (cheap); candidates
+        # below use the exact GP posterior gradient.
+        grad = np.stack(np.gradient(mean, *self.lattice_axes), axis=-1).reshape(-1, self.dim)
+        cand = ls.vertices
+        if self.dim == 3:
+            cand = cand[cand[:, 2] > self.table_margin_m]
+        cand = cand[farthest_point_subsample(cand, self.max_candidates)]
+        c_mean, c_var = self.gp.predict(cand) if len(cand) else (np.zeros(0), np.zeros(0))
+        c_grad = self.gp.predict_gradient(cand) if len(cand) else np.zeros((0, self.dim))
+        n_lat = len(self._lattice)
+        out = np.zeros(n_lat + len(cand), dtype=VARIANCE_MAP_DTYPE)
+        xyz = np.vstack([self._to_xyz(self._lattice), self._to_xyz(cand)])
+        out["x"], out["y"], out["z"] = xyz.T
+        out["mean"] = np.concatenate([mean.ravel(), c_mean])
+        out["variance"] = np.concatenate([var, c_var])
+        g = _unit(np.vstack([grad, c_grad]))
+        for i, name in enumerate(("normal_x", "normal_y", "normal_z")[: self.dim]):
+            out[name] = g[:, i]
+        out["kind"][:n_lat] = KIND_LATTICE
+        out["kind"][n_lat:] = KIND_CANDIDATE
+        self._cache = (self.gp.n, out, ls)
+        return self._cache
+
+
+def _unit(g: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(g, axis=1, keepdims=True)
+    return np.divide(g, n, out=np.zeros_like(g), where=n > 1e-12)
+
+
+def _nonneg(p: Mapping[str, Any], key: str) -> float:
+    v = float(p[key])
+    if not (np.isfinite(v) and v >= 0):
+        raise ValueError(f"{key} must be a finite number >= 0, got {p[key]}")
+    return v
