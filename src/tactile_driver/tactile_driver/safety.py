@@ -1,0 +1,107 @@
+"""Safety logic of the arm commander (ROS-free): workspace box, stale-state watchdog, e-stop latch.
+
+The box is checked on every tip waypoint before anything is sent: a target
+outside is rejected with the offending point, never clamped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+
+class OutsideWorkspace(ValueError):
+    """A tip point lies outside the safety box.
+
+    Attributes:
+        index: index of the first offending point.
+        point_xyz: that point (world, m).
+        lower_xyz, upper_xyz: the box (the floor included in lower z).
+    """
+
+    def __init__(self, index: int, point_xyz: np.ndarray, lower_xyz: np.ndarray, upper_xyz: np.ndarray) -> None:
+        self.index = int(index)
+        self.point_xyz = np.asarray(point_xyz, dtype=float)
+        self.lower_xyz, self.upper_xyz = lower_xyz, upper_xyz
+        axes = [
+            f"{'xyz'[i]}={self.point_xyz[i]:.4f} not in [{lower_xyz[i]:.4f}, {upper_xyz[i]:.4f}]"
+            for i in range(3)
+            if not lower_xyz[i] <= self.point_xyz[i] <= upper_xyz[i]
+        ] or ["not finite"]
+        super().__init__(f"tip point {index} outside the safety box: {', '.join(axes)}")
+
+
+@dataclass(frozen=True)
+class WorkspaceBox:
+    """Axis-aligned box for the tip centre (world frame, m), with a floor above the table.
+
+    The effective lower z is max(box z_min, table_z + table_margin + tip_radius).
+    """
+
+    lower_xyz: np.ndarray
+    upper_xyz: np.ndarray
+
+    @classmethod
+    def from_params(cls, x_m: Sequence[float], y_m: Sequence[float], z_m: Sequence[float],
+                    table_z_m: float = 0.0, table_margin_m: float = 0.005, tip_radius_m: float = 0.010) -> "WorkspaceBox":
+        for name, r in (("x", x_m), ("y", y_m), ("z", z_m)):
+            if len(r) != 2 or not r[0] < r[1]:
+                raise ValueError(f"safety box {name} range must be [min, max] with min < max, got {list(r)}")
+        floor = table_z_m + table_margin_m + tip_radius_m
+        lower = np.array([x_m[0], y_m[0], max(z_m[0], floor)], dtype=float)
+        upper = np.array([x_m[1], y_m[1], z_m[1]], dtype=float)
+        if lower[2] >= upper[2]:
+            raise ValueError(f"safety box floor {lower[2]:.3f} m is not below its top {upper[2]:.3f} m")
+        return cls(lower, upper)
+
+    def inside(self, points_xyz: np.ndarray) -> np.ndarray:
+        """(N,) bool: point inside the box (NaN is outside)."""
+        p = np.atleast_2d(np.asarray(points_xyz, dtype=float))
+        return np.all((p >= self.lower_xyz) & (p <= self.upper_xyz), axis=1)
+
+    def check(self, points_xyz: np.ndarray) -> None:
+        """Raise :class:`OutsideWorkspace` for the first point outside the box."""
+        p = np.atleast_2d(np.asarray(points_xyz, dtype=float))
+        ok = self.inside(p)
+        if not ok.all():
+            i = int(np.flatnonzero(~ok)[0])
+            raise OutsideWorkspace(i, p[i], self.lower_xyz, self.upper_xyz)
+
+
+class Watchdog:
+    """Stale-input detector: stale when nothing was fed for longer than ``timeout_s``.
+
+    Before the first ``feed`` it is stale (no state = no motion).
+    """
+
+    def __init__(self, timeout_s: float) -> None:
+        if timeout_s <= 0:
+            raise ValueError("watchdog timeout must be positive")
+        self.timeout_s = float(timeout_s)
+        self._last_s: Optional[float] = None
+
+    def feed(self, now_s: float) -> None:
+        self._last_s = float(now_s)
+
+    def age_s(self, now_s: float) -> float:
+        return np.inf if self._last_s is None else float(now_s) - self._last_s
+
+    def is_stale(self, now_s: float) -> bool:
+        return self.age_s(now_s) > self.timeout_s
+
+
+class EStopLatch:
+    """E-stop state: engaged by ``True``; only an explicit ``False`` releases it."""
+
+    def __init__(self) -> None:
+        self.engaged = False
+        self.count = 0  # times it was engaged
+
+    def set(self, value: bool) -> bool:
+        """Apply a message; returns True when this engages a released latch."""
+        rising = bool(value) and not self.engaged
+        self.engaged = bool(value)
+        self.count += int(rising)
+        return rising
