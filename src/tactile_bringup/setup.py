@@ -22,6 +22,8 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "recorder = tactile_bringup.recorder_node:main",
+            "player = tactile_bringup.player_node:main",
         ],
     },
 )

@@ -1,0 +1,146 @@
+"""``player``: publish an MCAP recording back onto the graph at its recorded timing.
+
+One publisher per recorded topic with the recorded QoS adapted to its
+offers (latched topics stay TRANSIENT_LOCAL); messages are published as raw
+CDR bytes in ``log_time`` order at ``wall = start + (t - t0) / rate``.
+Before starting it waits up to ``wait_for_subscribers_s`` for every topic
+to have a subscriber. Optionally publishes ``/clock`` from the recorded
+times. Exits when done (unless ``loop``), after ``linger_s``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Dict, Iterator, Optional, Tuple
+
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+
+from tactile_bringup.bag_ros import adapted_qos, message_class, string_list_parameter
+from tactile_bringup.player import PlaybackClock, Recording
+from tactile_common import qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+
+_EARLY_S = 0.0005  # publish a message this close to its due time now
+
+
+class PlayerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("player")
+        p = declare_parameters(self, {
+            "bag": ("", "path of the .mcap recording to play"),
+            "rate": (1.0, "playback speed factor"),
+            "loop": (False, "start again at the end"),
+            "clock": (False, "publish /clock from the recorded times"),
+            "clock_hz": (100.0, "/clock publish rate"),
+            "wait_for_subscribers_s": (2.0, "wait at most this long for subscribers before starting"),
+            "linger_s": (0.0, "keep publishers alive this long after the end (latched topics)"),
+            "progress_period_s": (1.0, "progress log period"),
+            "queue_depth": (100, "publisher depth of volatile topics"),
+        })
+        selected = string_list_parameter(self, "topics", "topics to play; empty = all recorded")
+        if not p.bag:
+            raise ValueError("parameter 'bag' (the .mcap to play) is required")
+        if not p.rate > 0:
+            raise ValueError(f"rate must be > 0, got {p.rate}")
+        self._rec = Recording(p.bag)
+        self._topics = self._rec.select(selected)
+        if p.clock and topics.CLOCK in self._topics:
+            self.get_logger().warning("publishing /clock from the recorded times; the recorded /clock is skipped")
+            self._topics.remove(topics.CLOCK)
+        self._p = p
+        self._pubs = {
+            name: self.create_publisher(
+                message_class(self._rec.topics[name].type_name), name,
+                adapted_qos(self._rec.topics[name].offered_qos_profiles, p.queue_depth),
+            )
+            for name in self._topics
+        }
+        self._clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if p.clock else None
+        self._total = sum(self._rec.topics[t].message_count for t in self._topics)
+        self._played = 0
+        self._loops = 0
+        self._iter: Optional[Iterator[Tuple[str, int, bytes]]] = None
+        self._next: Optional[Tuple[str, int, bytes]] = None
+        self._pclock: Optional[PlaybackClock] = None
+        self._timer = None
+        self._wait_started_s = time.monotonic()
+        self._wait_timer = self.create_timer(0.05, self._wait_for_subscribers)
+        if p.clock:
+            self.create_timer(1.0 / p.clock_hz, self._publish_clock)
+        self._progress_timer = None
+        self.get_logger().info(
+            f"playing {self._total} messages on {len(self._topics)} topics, "
+            f"{self._rec.duration_s:.1f} s recorded, at rate {p.rate} from {p.bag}"
+        )
+
+    # -- start -----------------------------------------------------------------
+    def _wait_for_subscribers(self) -> None:
+        unmatched = [t for t, pub in self._pubs.items() if pub.get_subscription_count() == 0]
+        waited_s = time.monotonic() - self._wait_started_s
+        if unmatched and waited_s < self._p.wait_for_subscribers_s:
+            return
+        self.destroy_timer(self._wait_timer)
+        if unmatched:
+            self.get_logger().info(f"no subscriber after {waited_s:.1f} s on {unmatched}; starting anyway")
+        self._progress_timer = self.create_timer(self._p.progress_period_s, self._log_progress)
+        self._start_pass()
+
+    def _start_pass(self) -> None:
+        self._iter = self._rec.messages(self._topics)
+        self._next = next(self._iter, None)
+        self._pclock = PlaybackClock(self._rec.start_ns, time.monotonic(), self._p.rate)
+        self._tick()
+
+    # -- playback --------------------------------------------------------------
+    def _tick(self) -> None:
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        while self._next is not None:
+            topic, t_ns, data = self._next
+            delay_s = self._pclock.wall_s(t_ns) - time.monotonic()
+            if delay_s > _EARLY_S:
+                self._timer = self.create_timer(delay_s, self._tick)
+                return
+            self._pubs[topic].publish(data)
+            self._played += 1
+            self._next = next(self._iter, None)
+        self._end_pass()
+
+    def _end_pass(self) -> None:
+        self._loops += 1
+        if self._p.loop:
+            self.get_logger().info(f"pass {self._loops} done; looping")
+            self._start_pass()
+            return
+        self._log_progress()
+        self.get_logger().info(f"done: {self._played} messages played")
+        if self._p.linger_s > 0:
+            self._timer = self.create_timer(self._p.linger_s, self._finish)
+        else:
+            self._finish()
+
+    def _finish(self) -> None:
+        self.context.try_shutdown()
+
+    def _publish_clock(self) -> None:
+        t_ns = self._rec.start_ns if self._pclock is None else self._pclock.recorded_ns(time.monotonic())
+        t_ns = min(t_ns, self._rec.end_ns) if not self._p.loop else t_ns
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
+        self._clock_pub.publish(msg)
+
+    def _log_progress(self) -> None:
+        if self._pclock is None:
+            return
+        t_s = min((self._pclock.recorded_ns(time.monotonic()) - self._rec.start_ns) * 1e-9, self._rec.duration_s)
+        self.get_logger().info(
+            f"pass {self._loops + 1}: played {self._played} messages in all ({self._total} per pass), "
+            f"{t_s:.1f}/{self._rec.duration_s:.1f} s"
+        )
+
+
+def main(args=None) -> int:
+    return run_node(PlayerNode, args)

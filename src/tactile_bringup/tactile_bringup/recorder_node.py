@@ -1,0 +1,121 @@
+"""``recorder``: record graph topics as serialized messages into a rosbag2-style MCAP file.
+
+Subscribes with ``raw=True`` (CDR bytes, no deserialisation) to the listed
+topics, or to every topic seen on the graph (re-discovered every
+``discovery_period_s``), minus ``exclude``. A topic is subscribed once it has
+a publisher, with a QoS adapted to its publishers' offers (latched topics are
+recorded latched). ``log_time`` = receive time on the node clock (sim time
+with ``use_sim_time``), ``publish_time`` = the publisher's source timestamp.
+SIGINT/SIGTERM finalise the file (``close``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Dict, List, Optional
+
+from rclpy.node import Node
+
+from tactile_bringup.bag_ros import adapted_qos, message_class, qos_to_dict, string_list_parameter
+from tactile_bringup.mcap_recorder import COMPRESSIONS, McapBagWriter
+from tactile_bringup.msgdefs import DefinitionNotFound
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+
+
+class RecorderNode(Node):
+    def __init__(self) -> None:
+        super().__init__("recorder")
+        p = declare_parameters(self, {
+            "output": ("", "path of the .mcap file to write (never overwritten)"),
+            "chunk_size_bytes": (1048576, "uncompressed size at which a chunk is written"),
+            "compression": ("zstd", f"chunk compression: {', '.join(sorted(COMPRESSIONS))}"),
+            "max_chunk_interval_s": (5.0, "write the open chunk at least this often (0 = only when full)"),
+            "discovery_period_s": (1.0, "period of the topic discovery"),
+            "queue_depth": (100, "subscription depth for volatile topics"),
+        })
+        self._topics = string_list_parameter(self, "topics", "topics to record; empty = every topic seen")
+        self._exclude = set(string_list_parameter(self, "exclude", "topics never recorded"))
+        if not p.output:
+            raise ValueError("parameter 'output' (path of the .mcap to write) is required")
+        if p.discovery_period_s <= 0:
+            raise ValueError(f"discovery_period_s must be > 0, got {p.discovery_period_s}")
+        output = Path(p.output).expanduser()
+        try:
+            self._writer = McapBagWriter(output, p.chunk_size_bytes, p.compression)
+        except (FileExistsError, FileNotFoundError, PermissionError) as exc:
+            raise ValueError(str(exc)) from None
+        self._queue_depth = p.queue_depth
+        self._subs: Dict[str, object] = {}
+        self._skipped: Dict[str, str] = {}  # topic -> why it is not recorded (logged once)
+        self.invalid_count = 0
+        self._closed = False
+        self.create_timer(p.discovery_period_s, self._discover)
+        if p.max_chunk_interval_s > 0:
+            self.create_timer(p.max_chunk_interval_s, self._writer.flush)
+        self.get_logger().info(
+            f"recording {'all topics' if not self._topics else self._topics} to {output}"
+            + (f" (excluding {sorted(self._exclude)})" if self._exclude else "")
+        )
+        self._discover()
+
+    def _wanted(self, topic: str) -> bool:
+        return topic not in self._exclude and (not self._topics or topic in self._topics)
+
+    def _skip(self, topic: str, why: str) -> None:
+        if self._skipped.get(topic) != why:
+            self._skipped[topic] = why
+            self.get_logger().warning(f"not recording {topic}: {why}")
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or not self._wanted(topic):
+                continue
+            if len(types) != 1:
+                self._skip(topic, f"several types {types}")
+                continue
+            publishers = self.get_publishers_info_by_topic(topic)
+            if not publishers:
+                continue  # QoS unknown until a publisher appears
+            self._subscribe(topic, types[0], publishers)
+
+    def _subscribe(self, topic: str, type_name: str, publishers: list) -> None:
+        offers = [qos_to_dict(info.qos_profile) for info in publishers]
+        type_hash = str(publishers[0].topic_type_hash)
+        try:
+            msg_class = message_class(type_name)
+            self._writer.add_topic(topic, type_name, offers, "" if type_hash == "INVALID" else type_hash)
+        except (ValueError, DefinitionNotFound) as exc:
+            self._skip(topic, str(exc))
+            return
+        self._subs[topic] = self.create_subscription(
+            msg_class, topic, lambda data, info, t=topic: self._on_message(t, data, info),
+            adapted_qos(offers, self._queue_depth), raw=True,
+        )
+        self.get_logger().info(f"recording {topic} [{type_name}]")
+
+    def _on_message(self, topic: str, data: bytes, info: Optional[dict]) -> None:
+        log_time_ns = self.get_clock().now().nanoseconds
+        sent_ns = (info or {}).get("source_timestamp") or log_time_ns
+        try:
+            self._writer.write(topic, data, log_time_ns, sent_ns)
+        except (OSError, ValueError) as exc:
+            self.invalid_count += 1
+            self.get_logger().error(f"could not write a message of {topic}: {exc}")
+
+    def close(self) -> None:
+        """Finalise the MCAP file (last chunk, rosbag2 metadata, summary)."""
+        if self._closed:
+            return
+        self._closed = True
+        self._writer.close()
+        counts = {name: t.message_count for name, t in self._writer.topics.items()}
+        missing = [t for t in self._topics if t not in counts]
+        self.get_logger().info(
+            f"wrote {self._writer.message_count} messages to {self._writer.path}: {counts}"
+            + (f"; never seen: {missing}" if missing else "")
+        )
+
+
+def main(args=None) -> int:
+    return run_node(RecorderNode, args)
