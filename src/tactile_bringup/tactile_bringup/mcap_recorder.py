@@ -292,3 +292,24 @@ def recover(damaged: str | Path, output: str | Path) -> int:
             writer.write(by_channel[msg.channel_id], msg.data, msg.log_time, msg.publish_time)
     writer.close()
     return writer.message_count
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``python -m tactile_bringup.mcap_recorder --recover IN.mcap OUT.mcap``."""
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(description="Recover the completed chunks of an unfinished MCAP recording.")
+    parser.add_argument("--recover", nargs=2, metavar=("IN", "OUT"), required=True)
+    args = parser.parse_args(argv)
+    try:
+        n = recover(*args.recover)
+    except (OSError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    print(f"recovered {n} messages into {args.recover[1]}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

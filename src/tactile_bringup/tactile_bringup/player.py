@@ -16,6 +16,8 @@ import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
+_RECOVER_HINT = "recover it first: python -m tactile_bringup.mcap_recorder --recover IN.mcap OUT.mcap"
+
 
 @dataclass(frozen=True)
 class RecordedTopic:
@@ -44,14 +46,14 @@ class Recording:
                 header = reader.get_header()
                 summary = reader.get_summary()
         except (McapError, OSError, ValueError) as exc:
-            raise ValueError(f"'{self.path}' is not a readable MCAP file: {exc}") from None
+            raise ValueError(
+                f"'{self.path}' is not a readable, finalised MCAP file ({exc}); if the recorder "
+                f"was killed, {_RECOVER_HINT}"
+            ) from None
         if header.profile != "ros2":
             raise ValueError(f"'{self.path}' has MCAP profile '{header.profile}', not 'ros2'")
         if summary is None or summary.statistics is None:
-            raise ValueError(
-                f"'{self.path}' is not finalised (recorder killed?): recover it with "
-                "tactile_bringup.mcap_recorder.recover(damaged, output) first"
-            )
+            raise ValueError(f"'{self.path}' is not finalised (recorder killed?): {_RECOVER_HINT}")
         counts = summary.statistics.channel_message_counts
         self.topics: Dict[str, RecordedTopic] = {}
         for cid, ch in summary.channels.items():
