@@ -1,0 +1,156 @@
+"""The recorder on a real graph: files that rosbags opens, and chunks that survive SIGKILL."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import pytest
+import yaml
+from geometry_msgs.msg import PoseStamped
+from mcap.reader import make_reader
+from rclpy.serialization import serialize_message
+from rosbags.rosbag2 import Reader
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import String
+
+from tactile_bringup.mcap_recorder import recover
+from tactile_common import qos, topics
+from tactile_common.pointcloud import to_pointcloud2
+from tactile_common.smoke import seeded_cloud
+
+pytestmark = pytest.mark.graph
+
+TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+N_POSES = 20
+N_POINTS = 50
+LATCHED_TEXT = "latched hello"
+
+
+def decode(data: bytes, type_name: str):
+    """A message deserialised by rosbags (independent of rclpy)."""
+    return TYPESTORE.deserialize_cdr(data, type_name)
+
+
+def cloud_key(data: bytes) -> tuple:
+    """Comparable content of a PointCloud2 (CDR padding bytes may differ between serializers)."""
+    msg = decode(data, "sensor_msgs/msg/PointCloud2")
+    return (msg.header.frame_id, msg.width, msg.point_step, [f.name for f in msg.fields], msg.data.tobytes())
+
+
+def talker_cloud_key() -> tuple:
+    """What cloud_talker (seed 0) publishes."""
+    return cloud_key(serialize_message(to_pointcloud2(seeded_cloud(0, N_POINTS), topics.WORLD_FRAME)))
+
+
+def record_short_graph(graph, output: Path) -> dict:
+    """Record cloud_talker, a latched String and a PoseStamped stream; stop the recorder (SIGINT).
+
+    Returns the serialized messages the test published, by topic.
+    """
+    graph.start("talker", ["cloud_talker", "--ros-args", "-p", f"n_points:={N_POINTS}", "-p", "period_s:=0.05"])
+    graph.start("recorder", ["recorder", "--ros-args", "-p", f"output:={output}", "-p", "discovery_period_s:=0.2"])
+    node = graph.node
+    latched_pub = node.create_publisher(String, "/latched_note", qos.LATCHED)
+    latched_pub.publish(String(data=LATCHED_TEXT))
+    pose_pub = node.create_publisher(PoseStamped, "/pose", qos.EVENTS)
+    clouds = graph.collect("/cloud", PointCloud2, qos.EVENTS, raw=True)
+    graph.wait_for(
+        lambda: pose_pub.get_subscription_count() and latched_pub.get_subscription_count() and
+        "recording /cloud" in graph.procs["recorder"].log(),
+        timeout_s=20, what="the recorder to subscribe",
+    )
+    poses = []
+
+    def publish_pose():
+        if len(poses) < N_POSES:
+            msg = PoseStamped()
+            msg.header.frame_id = topics.WORLD_FRAME
+            msg.header.stamp.sec = len(poses)
+            msg.pose.position.x = float(len(poses))
+            msg.pose.orientation.w = 1.0
+            pose_pub.publish(msg)
+            poses.append(serialize_message(msg))
+
+    timer = node.create_timer(0.02, publish_pose)
+    graph.wait_for(lambda: len(poses) == N_POSES, timeout_s=20, what="the poses to be sent")
+    node.destroy_timer(timer)
+    # The graph keeps running: wait for five more talker clouds so the last pose has arrived.
+    seen = len(clouds)
+    graph.wait_for(lambda: len(clouds) >= seen + 5, timeout_s=20, what="more clouds")
+    assert graph.procs["recorder"].stop() == 0, graph.logs()
+    return {"/pose": poses, "/latched_note": [serialize_message(String(data=LATCHED_TEXT))]}
+
+
+def test_recording_opens_in_rosbags(ros_graph, tmp_path):
+    path = tmp_path / "run.mcap"
+    sent = record_short_graph(ros_graph, path)
+
+    by_topic: dict = {}
+    with Reader(path) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        assert {"/cloud", "/pose", "/latched_note"} <= set(conns)
+        for conn in reader.connections:  # the schema text is what rosbags itself knows the type as
+            parsed = get_types_from_msg(conn.msgdef.data, conn.msgtype)
+            assert conn.msgdef.format.name == "MSG"
+            assert all(parsed[n] == TYPESTORE.fielddefs[n] for n in parsed), conn.topic
+        for conn, _, data in reader.messages():
+            TYPESTORE.deserialize_cdr(data, conn.msgtype)  # every message deserialises
+            by_topic.setdefault(conn.topic, []).append(bytes(data))
+        latched_offers = conns["/latched_note"].ext.offered_qos_profiles
+        total = reader.message_count
+
+    pose_t = "geometry_msgs/msg/PoseStamped"
+    assert [decode(d, pose_t) for d in by_topic["/pose"]] == [decode(d, pose_t) for d in sent["/pose"]]
+    xs = [decode(d, pose_t).pose.position.x for d in by_topic["/pose"]]
+    assert xs == [float(i) for i in range(N_POSES)], "every pose, in order"
+    assert [decode(d, "std_msgs/msg/String").data for d in by_topic["/latched_note"]] == [LATCHED_TEXT]
+    assert [o.durability.name for o in latched_offers] == ["TRANSIENT_LOCAL"]
+    assert len(by_topic["/cloud"]) >= 5
+    assert all(cloud_key(d) == talker_cloud_key() for d in by_topic["/cloud"])
+
+    with open(path, "rb") as fh:
+        mreader = make_reader(fh)
+        summary = mreader.get_summary()
+        for channel in summary.channels.values():
+            type_name = summary.schemas[channel.schema_id].name
+            assert channel.metadata["topic_type_hash"] == TYPESTORE.hash_rihs01(type_name), channel.topic
+            assert yaml.safe_load(channel.metadata["offered_qos_profiles"])  # a non-empty YAML list
+        for _, _, message in mreader.iter_messages():
+            assert message.publish_time <= message.log_time  # sent before received (one host clock)
+        (meta,) = [m for m in mreader.iter_metadata() if m.name == "rosbag2"]
+    info = yaml.safe_load(meta.metadata["serialized_metadata"])["rosbag2_bagfile_information"]
+    assert info["message_count"] == total
+    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    assert counts["/pose"] == N_POSES and counts["/cloud"] == len(by_topic["/cloud"])
+
+
+def test_refuses_to_overwrite(ros_graph, tmp_path):
+    path = tmp_path / "exists.mcap"
+    path.write_bytes(b"old")
+    proc = ros_graph.start("recorder", ["recorder", "--ros-args", "-p", f"output:={path}"])
+    assert proc.popen.wait(30) == 2
+    assert "refusing to overwrite" in proc.log() and "Traceback" not in proc.log()
+    assert path.read_bytes() == b"old"
+
+
+def test_sigkill_keeps_completed_chunks(ros_graph, tmp_path):
+    path = tmp_path / "killed.mcap"
+    ros_graph.start("talker", ["cloud_talker", "--ros-args", "-p", f"n_points:={N_POINTS}", "-p", "period_s:=0.02"])
+    rec = ros_graph.start("recorder", [
+        "recorder", "--ros-args", "-p", f"output:={path}", "-p", "topics:=['/cloud']",
+        "-p", "chunk_size_bytes:=8000", "-p", "max_chunk_interval_s:=0.0", "-p", "discovery_period_s:=0.2",
+    ])
+    ros_graph.wait_for(lambda: path.exists() and path.stat().st_size > 8000, timeout_s=25, what="a few chunks")
+    os.killpg(rec.popen.pid, signal.SIGKILL)
+    assert rec.popen.wait(10) == -signal.SIGKILL
+    del ros_graph.procs["recorder"]  # no longer a live node of the graph
+
+    fixed = tmp_path / "recovered.mcap"
+    n = recover(path, fixed)
+    assert n >= 3
+    with Reader(fixed) as reader:
+        got = [(c.topic, cloud_key(d)) for c, _, d in reader.messages()]
+    assert got == [("/cloud", talker_cloud_key())] * n
