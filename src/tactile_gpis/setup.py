@@ -22,6 +22,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "gpis_estimator = tactile_gpis.node:main",
         ],
     },
 )

@@ -1,0 +1,98 @@
+"""gpis_estimator: contacts in, GPIS variance map / surface / occupancy out.
+
+Subscribes  /tactile/contacts (PointCloud2, CONTACT_DTYPE, EVENTS)
+Publishes   /gpis/variance_map (PointCloud2, VARIANCE_MAP_DTYPE, MAP latched)
+            /gpis/surface (Marker, MAP), /gpis/occupancy (OccupancyGrid, MAP; 2D only)
+Service     ~/reset (std_srvs/Trigger)
+Parameters  tactile_gpis.estimator.PARAMETERS (config/gpis_estimator.yaml)
+
+One map per contacts message (accepted or rejected), stamped with that message's
+header.stamp; the prior map at start has stamp 0.
+"""
+
+from __future__ import annotations
+
+from builtin_interfaces.msg import Time
+from nav_msgs.msg import OccupancyGrid
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
+from visualization_msgs.msg import Marker
+
+from tactile_common import qos, topics
+from tactile_common.fields import CONTACT_DTYPE, normals, xyz
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_common.pointcloud import PointCloudError, from_pointcloud2, to_pointcloud2
+
+from .estimator import PARAMETERS, ShapeEstimator
+from .ros_convert import occupancy_grid, surface_marker
+
+
+class GpisEstimatorNode(Node):
+    def __init__(self) -> None:
+        super().__init__("gpis_estimator")
+        values = vars(declare_parameters(self, PARAMETERS))
+        self.estimator = ShapeEstimator.from_params({k: values[k.replace(".", "_")] for k in PARAMETERS})
+        self.frame_id = str(values["frame_id"])
+        self.n_received = 0
+        self.n_rejected = 0
+        self.stamp = Time()
+        self.map_pub = self.create_publisher(PointCloud2, topics.VARIANCE_MAP, qos.MAP)
+        self.surface_pub = self.create_publisher(Marker, topics.SURFACE, qos.MAP)
+        self.occupancy_pub = (
+            self.create_publisher(OccupancyGrid, topics.OCCUPANCY, qos.MAP) if self.estimator.dim == 2 else None
+        )
+        self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.EVENTS)
+        self.create_service(Trigger, "~/reset", self.on_reset)
+        self.publish_estimate()
+        self.get_logger().info(
+            f"{self.estimator.dim}D GPIS, lattice {self.estimator.lattice_shape}, "
+            f"kernel {self.estimator.kernel.name}: prior map published"
+        )
+
+    def on_contacts(self, msg: PointCloud2) -> None:
+        self.n_received += 1
+        self.stamp = msg.header.stamp
+        for ok, reason in self.add_cloud(msg):
+            if not ok:
+                self.n_rejected += 1
+                self.get_logger().warn(f"observation rejected ({self.n_rejected} so far): {reason}")
+        self.publish_estimate()
+
+    def add_cloud(self, msg: PointCloud2) -> list[tuple[bool, str]]:
+        if msg.header.frame_id != self.frame_id:
+            return [(False, f"frame_id '{msg.header.frame_id}', expected '{self.frame_id}'")]
+        try:
+            pts = from_pointcloud2(msg, list(CONTACT_DTYPE.names))
+        except PointCloudError as exc:
+            return [(False, f"bad cloud: {exc}")]
+        if len(pts) == 0:
+            return [(False, "empty cloud")]
+        return [
+            self.estimator.add_observation(p, n, int(label))
+            for p, n, label in zip(xyz(pts), normals(pts), pts["label"])
+        ]
+
+    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        n = self.estimator.n_observations
+        self.estimator.reset()
+        self.publish_estimate()
+        response.success = True
+        response.message = f"estimate reset ({n} observations dropped)"
+        self.get_logger().info(response.message)
+        return response
+
+    def publish_estimate(self) -> None:
+        self.map_pub.publish(to_pointcloud2(self.estimator.map_array(), self.frame_id, self.stamp))
+        self.surface_pub.publish(surface_marker(self.estimator, self.frame_id, self.stamp))
+        if self.occupancy_pub is not None:
+            self.occupancy_pub.publish(occupancy_grid(self.estimator, self.frame_id, self.stamp))
+
+
+def main(args=None) -> int:
+    return run_node(GpisEstimatorNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
