@@ -1,0 +1,136 @@
+"""Parse the GPIS variance map (``VARIANCE_MAP_DTYPE``) into a regular lattice plus candidates.
+
+World frame, metres. The lattice nodes (kind 0) come first in C order of a
+regular lattice (x slowest; 2D: x then y, all with z = plane height; 3D: x, y,
+z); the lattice is rebuilt from the unique coordinates of each axis and the
+order is checked. Candidates (kind 1) follow with mean, variance and unit
+outward normal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, normals, xyz
+
+
+class MapError(ValueError):
+    """A variance map that cannot be planned on, with the reason."""
+
+
+@dataclass(frozen=True)
+class MapLattice:
+    """Regular lattice of the estimator (world frame).
+
+    Attributes:
+        axes: per lattice axis the sorted node coordinates (m); 2 axes (x, y) in 2D, 3 in 3D.
+        mean_m: GP mean of f on the lattice, shape = lattice shape (m, < 0 inside).
+        variance_m2: GP variance of f on the lattice (m²).
+        plane_z_m: the plane height in 2D (None in 3D).
+    """
+
+    axes: tuple
+    mean_m: np.ndarray
+    variance_m2: np.ndarray
+    plane_z_m: float | None
+
+    @property
+    def dim(self) -> int:
+        return len(self.axes)
+
+    @property
+    def shape(self) -> tuple:
+        return tuple(len(a) for a in self.axes)
+
+    @property
+    def origin(self) -> np.ndarray:
+        return np.array([a[0] for a in self.axes])
+
+    @property
+    def spacing_m(self) -> np.ndarray:
+        return np.array([a[1] - a[0] for a in self.axes])
+
+    def grid_xyz(self) -> np.ndarray:
+        """(prod(shape), 3) world coordinates of every lattice node, C order."""
+        mesh = np.meshgrid(*self.axes, indexing="ij")
+        cols = [m.ravel() for m in mesh]
+        if self.dim == 2:
+            cols.append(np.full(cols[0].shape, self.plane_z_m))
+        return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Touch candidates on the estimated surface (world frame)."""
+
+    xyz: np.ndarray  # (M, 3) m
+    normal: np.ndarray  # (M, 3) unit outward normal
+    mean_m: np.ndarray  # (M,)
+    variance_m2: np.ndarray  # (M,)
+
+    def __len__(self) -> int:
+        return int(self.xyz.shape[0])
+
+
+def _axis(values: np.ndarray, name: str) -> np.ndarray:
+    u = np.unique(values)
+    if len(u) >= 2:
+        steps = np.diff(u)
+        if not np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9):
+            raise MapError(f"lattice {name} coordinates are not evenly spaced")
+    return u
+
+
+def parse_variance_map(map_array: np.ndarray) -> tuple[MapLattice, Candidates]:
+    """Split a variance map into its lattice and its candidates.
+
+    Raises:
+        MapError: wrong dtype, no lattice, lattice not regular / not in C order,
+            non-finite values.
+    """
+    arr = np.asarray(map_array)
+    needed = ("x", "y", "z", "mean", "variance", "normal_x", "normal_y", "normal_z", "kind")
+    if arr.dtype.names is None or any(n not in arr.dtype.names for n in needed):
+        raise MapError(f"map must be a structured array with fields {needed}")
+    kind = arr["kind"]
+    n_lat = int(np.count_nonzero(kind == KIND_LATTICE))
+    if n_lat == 0:
+        raise MapError("map has no lattice nodes (kind 0)")
+    if not np.all(kind[:n_lat] == KIND_LATTICE):
+        raise MapError("lattice nodes (kind 0) must come before the candidates (kind 1)")
+    if np.any((kind[n_lat:] != KIND_CANDIDATE)):
+        raise MapError("unknown point kind after the lattice (expected 1 = candidate)")
+    lat = arr[:n_lat]
+    p = xyz(lat)
+    if not (np.isfinite(p).all() and np.isfinite(lat["mean"]).all() and np.isfinite(lat["variance"]).all()):
+        raise MapError("lattice holds non-finite coordinates, mean or variance")
+    ax = [_axis(p[:, k], "xyz"[k]) for k in range(3)]
+    if len(ax[2]) == 1:  # 2D: every node at the plane height
+        axes, plane_z = (ax[0], ax[1]), float(ax[2][0])
+    else:
+        axes, plane_z = tuple(ax), None
+    shape = tuple(len(a) for a in axes)
+    if any(s < 2 for s in shape):
+        raise MapError(f"lattice must have at least 2 nodes per axis, got shape {shape}")
+    if int(np.prod(shape)) != n_lat:
+        raise MapError(f"{n_lat} lattice nodes do not form a full lattice of shape {shape}")
+    mesh = np.meshgrid(*axes, indexing="ij")
+    for k, m in enumerate(mesh):
+        if not np.allclose(p[:, k], m.ravel(), rtol=0, atol=1e-9):
+            raise MapError("lattice nodes are not in C order (x slowest, then y, then z)")
+    lattice = MapLattice(
+        axes=axes,
+        mean_m=lat["mean"].astype(np.float64).reshape(shape),
+        variance_m2=np.maximum(lat["variance"].astype(np.float64), 0.0).reshape(shape),
+        plane_z_m=plane_z,
+    )
+    cand = arr[n_lat:]
+    cands = Candidates(
+        xyz=xyz(cand),
+        normal=normals(cand),
+        mean_m=cand["mean"].astype(np.float64),
+        variance_m2=cand["variance"].astype(np.float64),
+    )
+    return lattice, cands

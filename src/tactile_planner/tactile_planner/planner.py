@@ -1,0 +1,254 @@
+"""TouchPlanner: one decision "where to touch next" from a GPIS variance map (ROS-free).
+
+Used by the ``soc_planner`` node and by the offline exploration loop with the
+same parameters (config/soc_planner.yaml, ``soc_planner: ros__parameters:``).
+
+One decision: parse the map → free-space graph (μ ≥ margin) → attach each
+candidate to the free node nearest its pre-touch point (candidate +
+(standoff + tip radius)·n) → travel costs from the tip's node to every
+candidate (one LMDP solve, or Dijkstra) → strategy scores → path of the chosen
+target (greedy on the controlled transition, then shortcut) from the tip to
+the pre-touch point. World frame, metres, seconds.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+import scipy.sparse.csgraph as csg
+
+from .graph import FreeSpaceGraph, build_free_graph
+from .maps import MapError, parse_variance_map
+from .paths import path_length_m, shortcut
+from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
+from .travel import TravelError, make_backend
+
+_log = logging.getLogger(__name__)
+
+#: name -> (default, description): the node's ROS parameters, also the keys of ``from_params``.
+PARAMETERS: dict[str, tuple[Any, str]] = {
+    "mode": ("2d", "'2d' (plane z = plane height, 8-connected) or '3d' (26-connected); must match the map"),
+    "strategy": ("proposed", f"one of {STRATEGIES}"),
+    "score_form": ("normalized", f"proposed strategy form: one of {SCORE_FORMS}"),
+    "alpha": (1.0, "uncertainty/travel trade-off of the proposed strategy (→∞: most uncertain, →0: nearest)"),
+    "seed": (0, "seed of the planner's random generator (random strategy)"),
+    "backend": ("lmdp", "travel costs: 'lmdp' (one linear solve) or 'dijkstra'"),
+    "solver": ("auto", "LMDP linear solver: 'auto' (2D LU, 3D CG), 'lu' or 'cg'"),
+    "cost_rate_per_m": (200.0, "LMDP state cost per metre of travel (nats/m); larger = closer to shortest paths"),
+    "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × lattice diagonal ≤ this (no underflow)"),
+    "cg_rtol": (1e-12, "relative residual tolerance of the 3D conjugate gradients"),
+    "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)"),
+    "shell_m": (0.0, "3D: keep only nodes with mean ≤ margin + shell (0 = all free space)"),
+    "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths"),
+    "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)"),
+    "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
+    "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose"),
+    "tip_radius_m": (0.01, "fingertip radius"),
+    "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps"),
+    "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable"),
+    "tip_speed_mps": (0.1, "free-space tip speed (motion model)"),
+    "approach_speed_mps": (0.02, "approach/retract speed (motion model)"),
+    "dwell_s": (0.5, "time at contact (motion model)"),
+    "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid"),
+    "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update"),
+    "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance"),
+    "smooth_path": (True, "shortcut the lattice path (never entering the margin)"),
+}
+
+
+#: Parameters of the node only (accepted and ignored by ``TouchPlanner.from_params``).
+NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
+    "frame_id": ("world", "frame of the goal and path (the map's frame)"),
+    "request_timeout_s": (30.0, "answer a request with status 'no_map' if no new enough map/tip pose arrives in time"),
+}
+
+
+@dataclass
+class PlanResult:
+    """Outcome of one decision (world frame, metres; index −1 and NaNs when no goal)."""
+
+    status: str  # 'ok' | 'no_candidates' | 'all_unreachable' | 'bad_map' | 'no_free_space' | 'solver_failed'
+    message: str
+    index: int = -1
+    target_xyz: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    normal_xyz: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    pretouch_xyz: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    path_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    scores: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    travel_costs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    travel_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    decision_ms: float = 0.0
+    start_snapped: bool = False
+    n_candidates: int = 0
+    n_unreachable: int = 0
+    n_excluded: int = 0
+    n_nodes: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+
+class TouchPlanner:
+    """Facade: ``plan(map_array, tip_xyz, excluded_targets) -> PlanResult``."""
+
+    def __init__(self, params: Mapping[str, Any], seed: int) -> None:
+        params = {k: v for k, v in params.items() if k not in NODE_PARAMETERS}
+        unknown = set(params) - set(PARAMETERS)
+        if unknown:
+            raise ValueError(f"unknown planner parameter(s) {sorted(unknown)}")
+        p = {k: v for k, (v, _) in PARAMETERS.items()}
+        p.update(params)
+        if p["mode"] not in ("2d", "3d"):
+            raise ValueError(f"mode must be '2d' or '3d', got '{p['mode']}'")
+        if p["strategy"] not in STRATEGIES:
+            raise ValueError(f"strategy must be one of {STRATEGIES}, got '{p['strategy']}'")
+        if p["score_form"] not in SCORE_FORMS:
+            raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
+        for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
+                  "info_gain_length_scale_m"):
+            if not float(p[k]) > 0:
+                raise ValueError(f"{k} must be positive, got {p[k]}")
+        if int(p["lattice_stride"]) < 1:
+            raise ValueError("lattice_stride must be ≥ 1")
+        if float(p["margin_m"]) >= float(p["standoff_m"]) + float(p["tip_radius_m"]):
+            raise ValueError("margin_m must be below standoff_m + tip_radius_m, or no pre-touch point is free")
+        self.params = p
+        self.seed = int(seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.backend = make_backend(p["backend"], float(p["cost_rate_per_m"]), float(p["max_rate_nats"]),
+                                    str(p["solver"]), float(p["cg_rtol"]))
+        self.strategy_params = StrategyParams(
+            alpha=float(p["alpha"]), score_form=str(p["score_form"]),
+            sequential_step_rad=float(p["sequential_step_rad"]),
+            info_gain_length_scale_m=float(p["info_gain_length_scale_m"]),
+            info_gain_noise_var_m2=float(p["info_gain_noise_var_m2"]),
+        )
+        self.last_graph: FreeSpaceGraph | None = None
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], seed: int) -> "TouchPlanner":
+        """Build from a dict keyed by the node's ROS parameter names (the YAML)."""
+        return cls(params, seed)
+
+    # ------------------------------------------------------------------
+    def plan(self, map_array: np.ndarray, tip_xyz: np.ndarray,
+             excluded_targets: np.ndarray | None = None) -> PlanResult:
+        """Choose the next touch. Never raises on bad input: the status says why there is no goal."""
+        t0 = time.perf_counter()
+        try:
+            res = self._plan(map_array, tip_xyz, excluded_targets)
+        except MapError as exc:
+            res = PlanResult("bad_map", f"bad variance map: {exc}")
+        except TravelError as exc:
+            res = PlanResult("solver_failed", f"travel-cost solve failed: {exc}")
+        res.decision_ms = (time.perf_counter() - t0) * 1e3
+        return res
+
+    def _plan(self, map_array, tip_xyz, excluded_targets) -> PlanResult:
+        p = self.params
+        tip = np.asarray(tip_xyz, float).reshape(-1)
+        if tip.shape != (3,) or not np.isfinite(tip).all():
+            return PlanResult("bad_tip", f"fingertip position must be 3 finite numbers, got {tip_xyz!r}")
+        lattice, cands = parse_variance_map(map_array)
+        dim = 2 if p["mode"] == "2d" else 3
+        if lattice.dim != dim:
+            raise MapError(f"planner mode is {p['mode']} but the map lattice is {lattice.dim}D")
+        s = int(p["lattice_stride"])
+        if s > 1:
+            sl = tuple(slice(None, None, s) for _ in range(dim))
+            lattice = type(lattice)(tuple(a[::s] for a in lattice.axes), lattice.mean_m[sl],
+                                    lattice.variance_m2[sl], lattice.plane_z_m)
+        m = len(cands)
+        if m == 0:
+            return PlanResult("no_candidates", "the map has no touch candidates")
+        normal = cands.normal.copy()
+        if dim == 2:
+            normal[:, 2] = 0.0
+        nlen = np.linalg.norm(normal, axis=1)
+        valid = np.isfinite(nlen) & (nlen > 1e-9) & np.isfinite(cands.xyz).all(axis=1) & np.isfinite(cands.variance_m2)
+        normal = np.where(valid[:, None], normal / np.where(nlen > 1e-9, nlen, 1.0)[:, None], 0.0)
+        target = cands.xyz.copy()
+        if dim == 2:
+            target[:, 2] = lattice.plane_z_m
+            tip = np.array([tip[0], tip[1], lattice.plane_z_m])
+        pretouch = target + (float(p["standoff_m"]) + float(p["tip_radius_m"])) * normal
+
+        excluded = np.zeros(m, bool)
+        if excluded_targets is not None and len(np.asarray(excluded_targets).reshape(-1)):
+            ex = np.asarray(excluded_targets, float).reshape(-1, 3)
+            d = np.linalg.norm(target[:, None, :dim] - ex[None, :, :dim], axis=2)
+            excluded = np.any(d <= float(p["exclude_radius_m"]), axis=1)
+
+        p_in = float(p["p_inside_max"])
+        graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
+                                 float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None)
+        self.last_graph = graph
+        base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
+        if graph.n_nodes == 0:
+            return PlanResult("no_free_space", "no lattice node is outside the safety margin", **base)
+        start = graph.nearest_node(tip)
+        snapped = bool(np.linalg.norm(graph.xyz[start] - tip) > 0.5 * float(np.max(lattice.spacing_m)) * np.sqrt(dim)
+                       or not graph.segments_free(tip[None], graph.xyz[start][None])[0])
+        term_node, term_len = graph.attach(pretouch, int(p["attach_reach"]))
+        _, comp = csg.connected_components(graph.length_m, directed=False)
+        reachable = valid & ~excluded & (term_node >= 0)
+        reachable &= np.where(term_node >= 0, comp[np.maximum(term_node, 0)] == comp[start], False)
+        if reachable.any():
+            ends_ok = graph.segments_free(graph.xyz[np.maximum(term_node, 0)], pretouch)
+            reachable &= ends_ok
+        base.update(start_snapped=snapped)
+        snap_msg = " (start inside the margin/off the graph: snapped to the nearest free node)" if snapped else ""
+        if not reachable.any():
+            return PlanResult("all_unreachable",
+                              f"all {m} candidates are unreachable or excluded "
+                              f"({int(excluded.sum())} excluded, {int((~valid).sum())} invalid){snap_msg}",
+                              n_unreachable=int(m - excluded.sum()), **base)
+        sol = self.backend.solve(graph, start, term_node, term_len, reachable)
+        reachable &= np.isfinite(sol.cost)
+        if not reachable.any():
+            return PlanResult("all_unreachable", f"no candidate has a finite travel cost{snap_msg}",
+                              n_unreachable=int(m - excluded.sum()), **base)
+        time_s = (sol.travel_m / float(p["tip_speed_mps"])
+                  + 2.0 * float(p["standoff_m"]) / float(p["approach_speed_mps"]) + float(p["dwell_s"]))
+        ctx = SelectionContext(xyz=target, variance_m2=cands.variance_m2, cost=sol.cost, time_s=time_s,
+                               reachable=reachable, tip_xyz=tip)
+        scores = score_candidates(p["strategy"], ctx, self.strategy_params, self.rng)
+        idx = int(np.argmax(scores))
+        nodes = sol.path_nodes(idx)
+        pts = np.vstack([tip[None], graph.xyz[nodes], pretouch[idx][None]])
+        if bool(p["smooth_path"]):
+            pts = shortcut(graph, pts)
+        pts = _dedupe(pts)
+        n_unreach = int(m - excluded.sum() - (reachable).sum())
+        return PlanResult(
+            "ok",
+            f"candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
+            f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}",
+            index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
+            path_xyz=pts, scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
+            n_unreachable=n_unreach, **base,
+        )
+
+
+def _dedupe(pts: np.ndarray) -> np.ndarray:
+    keep = np.ones(len(pts), bool)
+    keep[1:] = np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12
+    return pts[keep]
+
+
+def load_params(yaml_path: str, node_name: str = "soc_planner") -> dict:
+    """The ``<node>: ros__parameters:`` dict of a ROS parameter file."""
+    import yaml
+
+    with open(yaml_path) as fh:
+        doc = yaml.safe_load(fh) or {}
+    for key in (node_name, "/" + node_name, "/**"):
+        if key in doc and "ros__parameters" in (doc[key] or {}):
+            return dict(doc[key]["ros__parameters"])
+    raise ValueError(f"{yaml_path} has no '{node_name}: ros__parameters:' section")

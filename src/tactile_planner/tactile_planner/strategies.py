@@ -1,0 +1,97 @@
+"""Touch selection strategies behind one interface: ``select(ctx, rng) -> scores``.
+
+The candidate with the highest score among the reachable ones is chosen (ties:
+the lowest index). Every strategy receives the planner's seeded
+``numpy.random.Generator``.
+
+- ``proposed`` (Matsubara & Shibata 2017): trade-off uncertainty vs travel.
+  ``score_form``:
+    * ``normalized`` (default): α·σ²/max σ² − C/max C over the reachable
+      candidates. Scale-invariant per decision: σ² shrinks by orders of
+      magnitude as contacts accumulate, and a fixed α in the paper's form
+      drifts towards "nearest" (DESIGN §5).
+    * ``additive``: the paper's α·σ² − C (σ² in m², C in backend units).
+    * ``ratio``: σ² / time (variance per second of touch).
+  α → ∞ gives ``uncertainty``; α → 0 gives the nearest candidate.
+- ``uncertainty`` (Björkman et al.): argmax σ².
+- ``random``: uniform over the reachable candidates.
+- ``sequential``: passive sweep: the next candidate counter-clockwise (about
+  world +z through the centroid of the candidates) from the fingertip's angle,
+  at least ``sequential_step_rad`` further.
+- ``info_gain`` (ours): expected reduction of the summed posterior variance
+  over the candidate set per second of touch. The posterior covariance is
+  approximated as cov(m, c) ≈ ρ(|m − c|)·σ_m·σ_c with a squared-exponential
+  correlation ρ(r) = exp(−r²/2ℓ²) (ℓ = ``info_gain_length_scale_m``); a contact
+  at c with noise σ_n² reduces Σ_m σ_m² by σ_c²/(σ_c² + σ_n²)·Σ_m ρ²σ_m². Time
+  = travel/tip speed + 2·standoff/approach speed + dwell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+STRATEGIES = ("proposed", "uncertainty", "random", "sequential", "info_gain")
+SCORE_FORMS = ("normalized", "additive", "ratio")
+
+
+@dataclass
+class SelectionContext:
+    """What a strategy sees for one decision (world frame; unreachable candidates have inf cost)."""
+
+    xyz: np.ndarray  # (M, 3) candidate positions (m)
+    variance_m2: np.ndarray  # (M,)
+    cost: np.ndarray  # (M,) backend travel cost (inf = unreachable)
+    time_s: np.ndarray  # (M,) time of the touch (travel + approach + retract + dwell)
+    reachable: np.ndarray  # (M,) bool
+    tip_xyz: np.ndarray  # (3,)
+
+
+@dataclass
+class StrategyParams:
+    alpha: float = 1.0
+    score_form: str = "normalized"
+    sequential_step_rad: float = 0.2
+    info_gain_length_scale_m: float = 0.03
+    info_gain_noise_var_m2: float = 1e-6
+
+
+def _norm(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    m = float(np.max(np.abs(v[mask]))) if mask.any() else 0.0
+    return v / m if m > 0 else np.zeros_like(v)
+
+
+def score_candidates(name: str, ctx: SelectionContext, params: StrategyParams,
+                     rng: np.random.Generator) -> np.ndarray:
+    """Scores (M,), −inf for unreachable candidates."""
+    ok = ctx.reachable & np.isfinite(ctx.cost)
+    var = np.maximum(ctx.variance_m2, 0.0)
+    if name == "proposed":
+        if params.score_form == "normalized":
+            s = params.alpha * _norm(var, ok) - _norm(np.where(ok, ctx.cost, 0.0), ok)
+        elif params.score_form == "additive":
+            s = params.alpha * var - ctx.cost
+        elif params.score_form == "ratio":
+            s = var / np.maximum(ctx.time_s, 1e-9)
+        else:
+            raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{params.score_form}'")
+    elif name == "uncertainty":
+        s = var.copy()
+    elif name == "random":
+        s = rng.random(len(var))
+    elif name == "sequential":
+        c = ctx.xyz[ok].mean(axis=0) if ok.any() else np.zeros(3)
+        ang = np.arctan2(ctx.xyz[:, 1] - c[1], ctx.xyz[:, 0] - c[0])
+        tip = np.arctan2(ctx.tip_xyz[1] - c[1], ctx.tip_xyz[0] - c[0])
+        ahead = np.mod(ang - tip - params.sequential_step_rad, 2 * np.pi)
+        s = -ahead
+    elif name == "info_gain":
+        ell = params.info_gain_length_scale_m
+        d2 = np.sum((ctx.xyz[:, None, :] - ctx.xyz[None, :, :]) ** 2, axis=2)
+        rho2 = np.exp(-d2 / ell**2)  # ρ² = exp(−r²/ℓ²)
+        gain = var / (var + params.info_gain_noise_var_m2) * (rho2 @ var)
+        s = gain / np.maximum(ctx.time_s, 1e-9)
+    else:
+        raise ValueError(f"strategy must be one of {STRATEGIES}, got '{name}'")
+    return np.where(ok, s, -np.inf)
