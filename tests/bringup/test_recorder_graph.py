@@ -146,6 +146,7 @@ def test_sigkill_keeps_completed_chunks(ros_graph, tmp_path):
     ros_graph.wait_for(lambda: path.exists() and path.stat().st_size > 8000, timeout_s=25, what="a few chunks")
     os.killpg(rec.popen.pid, signal.SIGKILL)
     assert rec.popen.wait(10) == -signal.SIGKILL
+    rec.stop()  # closes its log
     del ros_graph.procs["recorder"]  # no longer a live node of the graph
 
     fixed = tmp_path / "recovered.mcap"

@@ -3,8 +3,8 @@
 One publisher per recorded topic with the recorded QoS adapted to its
 offers (latched topics stay TRANSIENT_LOCAL); messages are published as raw
 CDR bytes in ``log_time`` order at ``wall = start + (t - t0) / rate``.
-Before starting it waits up to ``wait_for_subscribers_s`` for every topic
-to have a subscriber. Optionally publishes ``/clock`` from the recorded
+Before starting it waits up to ``wait_for_subscribers_s`` for every
+volatile topic to have a subscriber. Optionally publishes ``/clock`` from the recorded
 times. Exits when done (unless ``loop``), after ``linger_s``.
 """
 
@@ -13,7 +13,9 @@ from __future__ import annotations
 import time
 from typing import Dict, Iterator, Optional, Tuple
 
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from tactile_bringup.bag_ros import adapted_qos, message_class, string_list_parameter
@@ -23,6 +25,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 
 _EARLY_S = 0.0005  # publish a message this close to its due time now
+_ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
 
 
 class PlayerNode(Node):
@@ -77,7 +80,10 @@ class PlayerNode(Node):
 
     # -- start -----------------------------------------------------------------
     def _wait_for_subscribers(self) -> None:
-        unmatched = [t for t, pub in self._pubs.items() if pub.get_subscription_count() == 0]
+        unmatched = [  # latched topics reach late subscribers anyway
+            t for t, pub in self._pubs.items()
+            if pub.get_subscription_count() == 0 and pub.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL
+        ]
         waited_s = time.monotonic() - self._wait_started_s
         if unmatched and waited_s < self._p.wait_for_subscribers_s:
             return
@@ -123,6 +129,12 @@ class PlayerNode(Node):
             self._finish()
 
     def _finish(self) -> None:
+        """Wait (bounded) until reliable subscribers acknowledged everything, then stop."""
+        deadline_s = time.monotonic() + _ACK_TIMEOUT_S
+        for topic, pub in self._pubs.items():
+            left_s = max(deadline_s - time.monotonic(), 0.0)
+            if not pub.wait_for_all_acked(Duration(nanoseconds=int(left_s * 1e9))):
+                self.get_logger().warning(f"{topic}: not every subscriber acknowledged the last messages")
         self.context.try_shutdown()
 
     def _publish_clock(self) -> None:
