@@ -162,8 +162,11 @@ class PlacedShape(SDFObject):
         q = self.pose.to_local(p)
         g = self.pose.vector_to_world(self._local_gradient(q))
         if self.dim == 3:
-            table = -p[:, 2] > self.pose.scale * self._local_sdf(q)
-            g[table] = (0.0, 0.0, -1.0)
+            # The table face can only be the closest one below z = 0 (the solid lies in z >= 0).
+            below = np.nonzero(p[:, 2] < 0.0)[0]
+            if len(below):
+                table = -p[below, 2] > self.pose.scale * self._local_sdf(q[below])
+                g[below[table]] = (0.0, 0.0, -1.0)
         return _normalise(g)
 
 
@@ -363,12 +366,15 @@ def _from_file(path: Path, suffix: str, mode: str, pose: Pose) -> SDFObject:
     from tactile_sim import mesh  # noqa: PLC0415 - only needed for mesh files
 
     tri = mesh.load_mesh(path)
-    _check_size(path, np.ptp(tri.reshape(-1, 3), axis=0))
-    m = mesh.MeshSDF(tri, name=str(path))
-    lo, hi = m.vertices.min(axis=0), m.vertices.max(axis=0)
+    corners = tri.reshape(-1, 3)
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    _check_size(path, hi - lo)
+    # Stand on the table at the object pose: bounding-box centre in x-y, lowest point at z = 0.
     offset = np.array([0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), lo[2]])
     m = mesh.MeshSDF(tri - offset, name=str(path))
-    return PlacedShape(path.stem, 3, m.sdf, np.vstack([lo - offset, hi - offset]), pose, m.gradient)
+    obj = PlacedShape(path.stem, 3, m.sdf, np.vstack([lo - offset, hi - offset]), pose, m.gradient)
+    obj.mesh = m
+    return obj
 
 
 def _check_size(path: Path, extent_m: np.ndarray) -> None:
@@ -426,13 +432,13 @@ def load_polygon_csv(path: str | Path) -> np.ndarray:
     if len(v) < 3:
         raise ValueError(f"{path}: a polygon needs at least 3 distinct vertices, got {len(v)}")
     _check_size(path, np.ptp(v, axis=0))
-    if abs(sdf2d.polygon_area_m2(v)) < 1e-12:
-        raise ValueError(f"{path}: polygon has zero area (all vertices on a line)")
     crossings = sdf2d.polygon_self_intersections(v)
     if crossings:
         i, j = crossings[0]
         raise ValueError(f"{path}: polygon is self-intersecting: edge {i + 1} (vertices {i + 1}-{(i + 1) % len(v) + 1}) "
                          f"crosses edge {j + 1} (vertices {j + 1}-{(j + 1) % len(v) + 1}); {len(crossings)} crossing(s)")
+    if abs(sdf2d.polygon_area_m2(v)) < 1e-12:
+        raise ValueError(f"{path}: polygon has zero area (all vertices on a line)")
     return v - 0.5 * (v.min(axis=0) + v.max(axis=0))
 
 
