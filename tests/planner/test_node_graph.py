@@ -1,0 +1,83 @@
+"""soc_planner as a process: synthetic circle map + tip pose + request → goal and path with equal stamps."""
+
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from std_msgs.msg import Header
+
+from tactile_common import qos, topics
+from tactile_common.pointcloud import to_pointcloud2
+from tactile_planner.synthetic import sphere_map
+
+pytestmark = pytest.mark.graph
+
+CONFIG = FsPath(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
+CENTER = np.array([0.5, 0.0])
+RADIUS = 0.05
+
+
+def _quat_x_axis(q) -> np.ndarray:
+    x, y, z, w = q.x, q.y, q.z, q.w
+    return np.array([1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w)])
+
+
+def test_goal_and_path_for_a_request(ros_graph):
+    ros_graph.start("planner", ["soc_planner", "--ros-args", "--params-file", str(CONFIG)])
+    node = ros_graph.node
+    goals = ros_graph.collect(topics.GOAL, PoseStamped, qos.EVENTS)
+    paths = ros_graph.collect(topics.PATH, Path, qos.EVENTS)
+    status = ros_graph.collect("/planner/status", DiagnosticStatus, qos.EVENTS)
+    pub_map = node.create_publisher(type(to_pointcloud2(sphere_map(8, 2)[:0], "world")), topics.VARIANCE_MAP, qos.MAP)
+    pub_tip = node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
+    pub_req = node.create_publisher(Header, "/planner/request", qos.EVENTS)
+    pub_done = node.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
+
+    tip = PoseStamped()
+    tip.header.frame_id = "world"
+    tip.pose.position.x, tip.pose.position.y, tip.pose.position.z = 0.40, -0.10, 0.06
+    # request before the map exists: the planner must wait for a map with stamp >= 5 s
+    ros_graph.wait_for(lambda: pub_req.get_subscription_count() > 0 and pub_tip.get_subscription_count() > 0,
+                       20, "planner subscriptions")
+    pub_req.publish(Header(stamp=Time(sec=5)))
+    pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=1)))  # too old
+    pub_tip.publish(tip)
+    ros_graph.wait_for(lambda: pub_map.get_subscription_count() > 0, 20, "map subscription")
+    assert not goals
+    pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=5)))
+
+    def tip_again():
+        pub_tip.publish(tip)
+        return goals and paths and status
+
+    ros_graph.wait_for(tip_again, 20, "goal and path")
+    goal, path = goals[0], paths[0]
+    assert goal.header.stamp == path.header.stamp
+    assert status and status[-1].message == "ok"
+    g = np.array([goal.pose.position.x, goal.pose.position.y, goal.pose.position.z])
+    # pre-touch point on the analytic circle's offset: radius + standoff + tip radius, in the plane
+    assert np.linalg.norm(g[:2] - CENTER) == pytest.approx(RADIUS + 0.02, abs=1e-6)
+    assert g[2] == pytest.approx(0.06)
+    x_axis = _quat_x_axis(goal.pose.orientation)
+    inward = np.append(CENTER - g[:2], 0.0)
+    np.testing.assert_allclose(x_axis, inward / np.linalg.norm(inward), atol=1e-6)
+    pts = np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in path.poses])
+    np.testing.assert_allclose(pts[0], [0.40, -0.10, 0.06], atol=1e-9)
+    np.testing.assert_allclose(pts[-1], g, atol=1e-9)
+
+    # the commander reports that goal unreachable: the next plan avoids its target
+    done = DiagnosticStatus(name="touch", message="unreachable", level=DiagnosticStatus.WARN)
+    stamp_ns = goal.header.stamp.sec * 1_000_000_000 + goal.header.stamp.nanosec
+    done.values = [KeyValue(key="goal_stamp_ns", value=str(stamp_ns))]
+    n_status = len(status)
+    ros_graph.wait_for(lambda: pub_done.get_subscription_count() > 0, 10, "touch_done subscription")
+    pub_done.publish(done)
+    ros_graph.wait_for(lambda: "excluding candidates" in ros_graph.procs["planner"].log(), 10, "exclusion logged")
+    pub_req.publish(Header(stamp=Time(sec=5)))
+    ros_graph.wait_for(lambda: len(goals) >= 2 and len(status) > n_status, 20, "second goal")
+    g2 = np.array([goals[1].pose.position.x, goals[1].pose.position.y])
+    assert np.linalg.norm(g2 - g[:2]) > 0.02
