@@ -27,6 +27,7 @@ MeanFn = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
 VALUE = -1  # row type of a value observation
 _CHUNK_ELEMS = 2_000_000  # elements of the (Na, chunk, d) difference array per chunk
+_V_BLOCK_ROWS = 64  # V is stored in blocks of rows, so growing it never copies it
 
 
 class FactorError(np.linalg.LinAlgError):
@@ -83,6 +84,14 @@ def gradient_rows(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.repeat(X, d, axis=0), np.tile(np.arange(d), n)
 
 
+def _forward_substitute(L: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """L^-1 B for a small lower-triangular L (b, b) and a wide B (b, M), row by row."""
+    out = np.empty_like(B)
+    for i in range(len(L)):
+        out[i] = (B[i] - L[i, :i] @ out[:i]) / L[i, i] if i else B[i] / L[i, i]
+    return out
+
+
 class GPIS:
     """GP over f: R^d -> R with value/gradient rows, appended block by block.
 
@@ -137,10 +146,6 @@ class GPIS:
         beta = np.zeros(cap)
         beta[: self.n] = self.beta
         self._L, self._beta = L, beta
-        if self._eval is not None:
-            V = np.empty((cap, len(self._eval)))
-            V[: self.n] = self._V[: self.n]
-            self._V = V
         self._cap = cap
 
     # -- observations --------------------------------------------------------
@@ -189,11 +194,10 @@ class GPIS:
         self._beta[n : n + B] = beta_new
         if self._eval is not None:
             Kb = cross_cov(self.kernel, X, t, self._eval, np.full(len(self._eval), VALUE))
-            if n:
-                Kb -= L21T.T @ self._V[:n]
-            Vnew = solve_triangular(L22, Kb, lower=True, check_finite=False)
-            self._V[n : n + B] = Vnew
-            self._eval_mean += Vnew.T @ beta_new
+            self._v_subtract_product(Kb, L21T)
+            Vnew = _forward_substitute(L22, Kb)
+            self._v_store(n, Vnew)
+            self._eval_mean += np.einsum("bm,b->m", Vnew, beta_new)
             self._eval_vsum += np.einsum("ij,ij->j", Vnew, Vnew)
         self.X = np.vstack([self.X, X])
         self.t = np.concatenate([self.t, t])
@@ -244,16 +248,35 @@ class GPIS:
             raise ValueError(f"evaluation points must be (M, {self.dim}), got {M.shape}")
         self._eval = M
         self._eval_prior = self.mean_fn(M)[0]
-        self._V = np.empty((self._cap, len(M)))
+        self._V = []
         if self.n:
             Kxm = cross_cov(self.kernel, self.X, self.t, M, np.full(len(M), VALUE))
-            self._V[: self.n] = solve_triangular(self.L, Kxm, lower=True, check_finite=False)
-            V = self._V[: self.n]
+            V = solve_triangular(self.L, Kxm, lower=True, check_finite=False)
+            self._v_store(0, V)
             self._eval_mean = self._eval_prior + V.T @ self.beta
             self._eval_vsum = np.einsum("ij,ij->j", V, V)
         else:
             self._eval_mean = self._eval_prior.copy()
             self._eval_vsum = np.zeros(len(M))
+
+    def _v_store(self, row: int, rows: np.ndarray) -> None:
+        """Write rows of V starting at ``row``, adding blocks as needed."""
+        for i in range(len(rows)):
+            b, r = divmod(row + i, _V_BLOCK_ROWS)
+            if b == len(self._V):
+                self._V.append(np.empty((_V_BLOCK_ROWS, len(self._eval))))
+            self._V[b][r] = rows[i]
+
+    def _v_subtract_product(self, out: np.ndarray, A: np.ndarray) -> None:
+        """out -= A^T V[:n] for A (n, B), block by block."""
+        for b, block in enumerate(self._V):
+            s = b * _V_BLOCK_ROWS
+            e = min(self.n, s + _V_BLOCK_ROWS)
+            if e <= s:
+                break
+            # einsum, not BLAS: this memory-bound product runs single-threaded and
+            # does not suffer from BLAS thread contention on a loaded machine
+            out -= np.einsum("ib,im->bm", A[s:e], block[: e - s])
 
     @property
     def eval_points(self) -> Optional[np.ndarray]:
