@@ -1,0 +1,157 @@
+"""``tactile-benchmark``: strategies × objects × seeds, in parallel over the cores.
+
+Writes to ``--out``: ``runs.json`` (every report), ``summary.md`` (per object
+and strategy: median travel and time to IoU 0.90/0.95, final IoU, median
+decision ms, and how many seeds reached each level), ``iou_vs_travel.png``,
+``iou_vs_time.png`` and ``gallery.png`` (final estimates over the truth).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from . import plots
+from .cli_common import add_experiment_args, run_main
+from .experiment import Experiment
+from .loop import ExplorationLoop
+from .report import _clean
+
+STRATEGIES = ("proposed", "uncertainty", "random", "sequential", "info_gain")
+
+
+def _one_run(job: dict) -> dict:
+    """Run one (object, strategy, seed); keep the final shapes for the gallery."""
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    exp = Experiment(mode=job["mode"], object_name=job["object"], strategy=job["strategy"],
+                     alpha=job["alpha"], seed=job["seed"], touches=job["touches"],
+                     user_params_files=job["params"])
+    loop = ExplorationLoop(exp)
+    t0 = time.perf_counter()
+    report = loop.run()
+    report["wall_s"] = time.perf_counter() - t0
+    est = loop.estimator.surface_points()
+    report["_shape"] = (est[:, :2].tolist(), loop.true_surface[:, :2].tolist())
+    return report
+
+
+def _median(values: list) -> Optional[float]:
+    vals = [v for v in values if v is not None]
+    return float(np.median(vals)) if vals else None
+
+
+def summary_table(runs: Sequence[dict]) -> str:
+    """Markdown table: one row per object and strategy (medians over seeds)."""
+    head = ("| object | strategy | seeds | final IoU | travel to 0.90 (m) | travel to 0.95 (m) "
+            "| time to 0.95 (s) | reached 0.95 | decision (ms) | wall (s) |\n"
+            "|---|---|---|---|---|---|---|---|---|---|\n")
+    rows = []
+    for obj in sorted({r["object"] for r in runs}):
+        for strat in sorted({r["strategy"] for r in runs}):
+            sel = [r for r in runs if r["object"] == obj and r["strategy"] == strat]
+            if not sel:
+                continue
+            s = [r["summary"] for r in sel]
+            t95 = [x["travel_to_iou_0.95_m"] for x in s]
+            dec = [t["decision_ms"] for r in sel for t in r["touches"]]
+            rows.append(
+                f"| {obj} | {strat} | {len(sel)} | {_fmt(_median([x['final_iou'] for x in s]), 3)} "
+                f"| {_fmt(_median([x['travel_to_iou_0.90_m'] for x in s]), 2)} | {_fmt(_median(t95), 2)} "
+                f"| {_fmt(_median([x['time_to_iou_0.95_s'] for x in s]), 0)} "
+                f"| {sum(v is not None for v in t95)}/{len(sel)} | {_fmt(_median(dec), 0)} "
+                f"| {_fmt(max(r['wall_s'] for r in sel), 0)} |")
+    return head + "\n".join(rows) + "\n"
+
+
+def overall_table(runs: Sequence[dict], level: str = "0.95") -> str:
+    """Per strategy over the whole suite: median travel/time to the level, counting
+    a run that never reached it at its total travel/time (a lower bound on its cost)."""
+    lines = [f"| strategy | runs | reached {level} | median travel to {level} (m)* | "
+             f"median time to {level} (s)* | median final IoU |", "|---|---|---|---|---|---|"]
+    for strat in sorted({r["strategy"] for r in runs}):
+        sel = [r["summary"] for r in runs if r["strategy"] == strat]
+        trav = [x[f"travel_to_iou_{level}_m"] if x[f"travel_to_iou_{level}_m"] is not None else x["travel_m"]
+                for x in sel]
+        tim = [x[f"time_to_iou_{level}_s"] if x[f"time_to_iou_{level}_s"] is not None else x["time_s"]
+               for x in sel]
+        reached = sum(x[f"travel_to_iou_{level}_m"] is not None for x in sel)
+        lines.append(f"| {strat} | {len(sel)} | {reached}/{len(sel)} | {np.median(trav):.2f} | "
+                     f"{np.median(tim):.0f} | {np.median([x['final_iou'] for x in sel]):.3f} |")
+    return "\n".join(lines) + "\n\n*runs that never reached the level count with their whole travel/time.\n"
+
+
+def _fmt(v: Optional[float], digits: int) -> str:
+    return "—" if v is None else f"{v:.{digits}f}"
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="tactile-benchmark", description=__doc__.splitlines()[0])
+    add_experiment_args(parser, several=True)
+    parser.add_argument("--objects", default=None, help="comma-separated objects (default: all built-in)")
+    parser.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
+    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel runs (default: cores)")
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    args = parser.parse_args(argv)
+
+    def body() -> int:
+        from tactile_sim.objects import list_objects
+
+        objects = args.objects.split(",") if args.objects else list_objects(args.mode)
+        strategies = args.strategies.split(",")
+        if args.seeds < 1:
+            raise ValueError("--seeds must be at least 1")
+        touches = args.touches
+        if touches is None:
+            touches = 30 if args.mode == "2d" else 60
+        jobs = [dict(mode=args.mode, object=o, strategy=s, seed=seed, alpha=args.alpha,
+                     touches=touches, params=[str(p) for p in args.params])
+                for o in objects for s in strategies for seed in range(args.seeds)]
+        # Fail fast on bad names before starting the pool.
+        Experiment(mode=args.mode, object_name=objects[0], strategy=strategies[0], touches=1,
+                   user_params_files=args.params)
+        args.out.mkdir(parents=True, exist_ok=True)
+        runs, shapes, t0 = [], [], time.time()
+        print(f"{len(jobs)} runs ({len(objects)} objects × {len(strategies)} strategies × {args.seeds} seeds, "
+              f"{touches} touches) on {args.jobs} processes", file=sys.stderr)
+        ctx = mp.get_context("fork")
+        with ctx.Pool(args.jobs, maxtasksperchild=4) as pool:
+            for i, report in enumerate(pool.imap_unordered(_one_run, jobs), 1):
+                est, truth = report.pop("_shape")
+                if report["seed"] == 0:
+                    shapes.append((f"{report['object']} / {report['strategy']}", np.asarray(est),
+                                   np.asarray(truth)))
+                runs.append(report)
+                s = report["summary"]
+                print(f"[{i}/{len(jobs)}] {report['object']:>14s} {report['strategy']:>11s} seed {report['seed']}: "
+                      f"IoU {s['final_iou']:.3f}, travel to 0.95 "
+                      f"{'—' if s['travel_to_iou_0.95_m'] is None else format(s['travel_to_iou_0.95_m'], '.2f')} m, "
+                      f"{report['wall_s']:.0f} s  (elapsed {time.time() - t0:.0f} s)", file=sys.stderr)
+        runs.sort(key=lambda r: (r["object"], r["strategy"], r["seed"]))
+        (args.out / "runs.json").write_text(json.dumps(_clean(runs)))
+        md = (f"# Strategy benchmark ({args.mode}, {touches} touches, {args.seeds} seeds)\n\n"
+              f"## Whole suite\n\n{overall_table(runs)}\n## Per object (medians over seeds)\n\n"
+              f"{summary_table(runs)}")
+        (args.out / "summary.md").write_text(md)
+        plots.plot_strategies(runs, args.out / "iou_vs_travel.png", "travel_m")
+        plots.plot_strategies(runs, args.out / "iou_vs_time.png", "time_s")
+        shapes.sort(key=lambda s: s[0])
+        plots.plot_gallery(shapes, args.out / "gallery.png")
+        print(md)
+        print(f"wrote {args.out}/runs.json, summary.md, iou_vs_travel.png, iou_vs_time.png, gallery.png",
+              file=sys.stderr)
+        return 0
+
+    return run_main(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,157 @@
+"""One experiment's configuration, shared by the offline loop and the node graph.
+
+The parameters come from the same ROS parameter files the nodes get, in this
+order (later wins): each node's package defaults (``share/<pkg>/config``),
+``tactile_bringup/config/explore_<mode>.yaml`` (what differs between 2D and
+3D), the user's ``--params`` files, then the command-line choices (object,
+strategy, alpha, seed, touches) as an overrides file. ``write_overrides``
+writes that last file so the graph's nodes get exactly what the offline loop
+uses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+import yaml
+
+from tactile_common.params_file import node_params, package_config
+
+#: node name -> (package, defaults file)
+NODE_DEFAULTS = {
+    "gpis_estimator": ("tactile_gpis", "gpis_estimator.yaml"),
+    "soc_planner": ("tactile_planner", "soc_planner.yaml"),
+    "tactile_sensor": ("tactile_driver", "tactile_sensor.yaml"),
+    "arm_commander": ("tactile_driver", "arm_commander.yaml"),
+    "sim_rig": ("tactile_sim", "sim_rig.yaml"),
+    "explorer": ("tactile_bringup", "explorer.yaml"),
+}
+MODES = ("2d", "3d")
+
+
+def default_params_files(mode: str) -> list[Path]:
+    """Every node's defaults, then the mode's file."""
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {MODES}, not '{mode}'")
+    files = []
+    for package, filename in NODE_DEFAULTS.values():
+        try:
+            files.append(package_config(package, filename))
+        except ValueError:
+            continue  # a package without defaults file: its node's declared defaults apply
+    files.append(package_config("tactile_bringup", f"explore_{mode}.yaml"))
+    return files
+
+
+@dataclass
+class Experiment:
+    """The choices of one run; every node's parameters derive from it."""
+
+    mode: str = "2d"
+    object_name: Optional[str] = None
+    strategy: Optional[str] = None
+    alpha: Optional[float] = None
+    seed: int = 0
+    touches: Optional[int] = None
+    user_params_files: Sequence[Path] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.params_files = default_params_files(self.mode) + [Path(p) for p in self.user_params_files]
+        for path in self.params_files:
+            if not Path(path).exists():
+                raise ValueError(f"{path}: no such parameter file")
+        self.overrides = self._overrides()
+        explorer = self.node_params("explorer")
+        self.object_name = self.overrides["sim_rig"]["object"] = (
+            self.object_name or self.node_params("sim_rig").get("object", "ellipse")
+        )
+        self.strategy = self.node_params("soc_planner").get("strategy", "proposed")
+        self.alpha = self.node_params("soc_planner").get("alpha")
+        self.touches = int(explorer.get("touches", 20))
+        self.max_travel_m = float(explorer.get("max_travel_m", 0.0))
+        self.confidence_max_var_m2 = float(explorer.get("confidence_max_var_m2", 0.0))
+        self.evaluation_resolution_m = float(explorer.get("evaluation_resolution_m", 0.002))
+        self.start_tip_xyz = np.asarray(explorer.get("start_tip_xyz_m", [0.35, 0.0, 0.06]), dtype=float)
+
+    # -- parameters ------------------------------------------------------------
+    def _overrides(self) -> dict[str, dict[str, Any]]:
+        """The command-line choices as per-node parameters."""
+        o: dict[str, dict[str, Any]] = {"/**": {"mode": self.mode}}
+        o["soc_planner"] = {"seed": int(self.seed)}
+        o["sim_rig"] = {"seed": int(self.seed)}
+        if self.strategy is not None:
+            o["soc_planner"]["strategy"] = self.strategy
+        if self.alpha is not None:
+            o["soc_planner"]["alpha"] = float(self.alpha)
+        o["explorer"] = {"seed": int(self.seed)}
+        if self.touches is not None:
+            o["explorer"]["touches"] = int(self.touches)
+        return o
+
+    def node_params(self, node: str) -> dict[str, Any]:
+        """Parameters of ``node`` as the graph's node gets them."""
+        params = node_params(self.params_files, node)
+        params.update(self.overrides.get("/**", {}))
+        params.update(self.overrides.get(node, {}))
+        return params
+
+    @property
+    def gpis_params(self) -> dict[str, Any]:
+        return self.node_params("gpis_estimator")
+
+    @property
+    def planner_params(self) -> dict[str, Any]:
+        return self.node_params("soc_planner")
+
+    @property
+    def sensor_params(self) -> dict[str, Any]:
+        return self.node_params("tactile_sensor")
+
+    @property
+    def sim_params(self) -> dict[str, Any]:
+        return self.node_params("sim_rig")
+
+    @property
+    def arm_params(self) -> dict[str, Any]:
+        return self.node_params("arm_commander")
+
+    def object_pose_kwargs(self) -> dict[str, Any]:
+        sim = self.sim_params
+        kwargs: dict[str, Any] = {}
+        if "object_xy_m" in sim:
+            kwargs["center_xy_m"] = tuple(float(v) for v in sim["object_xy_m"])
+        if "object_yaw_rad" in sim:
+            kwargs["yaw_rad"] = float(sim["object_yaw_rad"])
+        if "object_scale" in sim:
+            kwargs["scale"] = float(sim["object_scale"])
+        return kwargs
+
+    def evaluation_bounds(self) -> np.ndarray:
+        """(2, dim) box where IoU is measured: the estimator's workspace (z ≥ 0 in 3D)."""
+        g = self.gpis_params
+        lo = np.asarray(g["workspace.min_m"], dtype=float)
+        hi = np.asarray(g["workspace.max_m"], dtype=float)
+        dim = 2 if self.mode == "2d" else 3
+        lo, hi = lo[:dim].copy(), hi[:dim].copy()
+        if dim == 3:
+            lo[2] = max(lo[2], 0.0)
+        return np.stack([lo, hi])
+
+    def config_summary(self) -> dict[str, Any]:
+        """What the report records of the configuration."""
+        return {
+            "params_files": [str(p) for p in self.params_files],
+            "overrides": self.overrides,
+            "gpis_estimator": self.gpis_params,
+            "soc_planner": self.planner_params,
+            "motion": {k: self.planner_params.get(k) for k in ("tip_speed_mps", "approach_speed_mps", "dwell_s")},
+        }
+
+    def write_overrides(self, path: Path) -> Path:
+        """The overrides as a ROS parameter file, for the graph's nodes."""
+        doc = {node: {"ros__parameters": values} for node, values in self.overrides.items()}
+        Path(path).write_text(yaml.safe_dump(doc, sort_keys=False))
+        return Path(path)

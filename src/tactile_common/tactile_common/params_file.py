@@ -1,0 +1,87 @@
+"""Read ROS 2 parameter files the way ``--params-file`` does, for ROS-free code.
+
+The offline exploration loop must use exactly the parameters the nodes get,
+so it reads the same YAML files: a file holds sections keyed by node name
+(``soc_planner: ros__parameters: {...}``) and/or the wildcard ``/**``; later
+files override earlier ones, and a node's own section overrides the wildcard.
+Nested dictionaries are flattened to dotted names as ROS does.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import yaml
+
+
+class ParamsFileError(ValueError):
+    """A parameter file that cannot be read, with the file and the reason."""
+
+
+def _flatten(values: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(_flatten(value, name + "."))
+        else:
+            out[name] = value
+    return out
+
+
+def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
+    """``{node name or '/**': {param: value}}`` of one file."""
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ParamsFileError(f"{path}: no such parameter file") from None
+    except yaml.YAMLError as exc:
+        raise ParamsFileError(f"{path}: not valid YAML: {exc}") from None
+    if doc is None:
+        return {}
+    if not isinstance(doc, Mapping):
+        raise ParamsFileError(f"{path}: expected 'node_name: ros__parameters: ...' sections")
+    sections: dict[str, dict[str, Any]] = {}
+    for node, body in doc.items():
+        if not isinstance(body, Mapping) or "ros__parameters" not in body:
+            raise ParamsFileError(f"{path}: section '{node}' has no 'ros__parameters'")
+        key = "/**" if node == "/**" else str(node).lstrip("/")
+        sections[key] = _flatten(body["ros__parameters"] or {})
+    return sections
+
+
+def node_params(paths: Iterable[Path], node_name: str) -> dict[str, Any]:
+    """Parameters of ``node_name`` from ``paths`` (in order; later files win)."""
+    merged: dict[str, Any] = {}
+    for path in paths:
+        sections = read_params_file(path)
+        merged.update(sections.get("/**", {}))
+        merged.update(sections.get(node_name, {}))
+    return merged
+
+
+def package_config(package: str, filename: str) -> Path:
+    """``share/<package>/config/<filename>``: from the ament index when the
+    package is installed (colcon or our venv), else from the source tree."""
+    try:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+        try:
+            path = Path(get_package_share_directory(package)) / "config" / filename
+            if path.exists():
+                return path
+        except (PackageNotFoundError, KeyError, ValueError):
+            pass
+    except ImportError:  # pragma: no cover - ament_index_python ships with rclpy
+        pass
+    import importlib.util
+
+    spec = importlib.util.find_spec(package)
+    if spec is None or spec.origin is None:
+        raise ParamsFileError(f"package '{package}' is not installed")
+    path = Path(spec.origin).resolve().parent.parent / "config" / filename
+    if not path.exists():
+        raise ParamsFileError(f"{package} has no config/{filename}")
+    return path
