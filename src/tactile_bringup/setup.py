@@ -24,6 +24,8 @@ setup(
         "console_scripts": [
             "recorder = tactile_bringup.recorder_node:main",
             "player = tactile_bringup.player_node:main",
+            "tactile-explore-offline = tactile_bringup.explore_offline:main",
+            "tactile-benchmark = tactile_bringup.benchmark:main",
         ],
     },
 )
