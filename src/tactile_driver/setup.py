@@ -22,6 +22,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "arm_commander = tactile_driver.commander_node:main",
         ],
     },
 )

@@ -22,6 +22,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
+            "sim_rig = tactile_sim.rig_node:main",
         ],
     },
 )

@@ -1,0 +1,334 @@
+"""ArmCommander: a small Python API over ros2_control's topic interface (nav2_simple_commander style).
+
+Verbs start a motion and return at once (``True`` = accepted); poll
+``is_task_complete()`` and read ``get_result()`` (a :class:`TaskResult`), or
+call ``wait_until_complete(timeout_s)`` from a script that owns the node.
+
+    arm = ArmCommander(node, CommanderConfig())
+    arm.follow_path(path_xyz)                  # tip polyline, world frame
+    arm.wait_until_complete(30.0)
+    arm.approach(direction_xyz, max_depth_m)   # stops on the first contact
+    ...
+    arm.retract()                              # back to where the approach began
+
+Everything goes through two topics: JointTrajectory out (a new trajectory
+replaces the current one; an empty one stops and holds) and JointState in.
+Safety (always on): every tip waypoint must lie in the workspace box
+(rejected, never clamped); IK failures reject the motion before anything is
+sent; ``/arm/estop`` (latched Bool) stops and refuses motion until released;
+joint states older than ``watchdog_timeout_s`` (steady clock, so it also
+fires when a simulated clock stops) stop the motion within one
+``control_period_s``. With ``dry_run`` the planned trajectory goes to the
+inspection topic only and the task completes at once.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import JointState, PointCloud2
+from std_msgs.msg import Bool
+from trajectory_msgs.msg import JointTrajectory
+
+from tactile_common import fields, qos, topics
+from tactile_common.pointcloud import PointCloudError, from_pointcloud2
+from tactile_driver import arm_msgs
+from tactile_driver.ik import IKSettings
+from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, home_configuration
+from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog, WorkspaceBox
+from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, plan_tip_path
+
+
+class TaskResult(enum.Enum):
+    UNKNOWN = 0
+    SUCCEEDED = 1  # reached the end of the motion
+    CONTACT = 2  # an approach stopped on a contact
+    REJECTED = 3  # not attempted: outside the box, IK failed, e-stop engaged, no joint state
+    CANCELED = 4  # stop() was called
+    ABORTED = 5  # e-stop, stale joint states, or the goal not reached in time
+
+
+@dataclass
+class CommanderConfig:
+    """Everything the commander needs (the node fills it from its parameters)."""
+
+    urdf_path: str = ""
+    joint_names: tuple = PANDA_JOINTS
+    flange_frame: str = PANDA_FLANGE
+    tip_offset_m: float = 0.16
+    home_rad: tuple = (0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854)
+    box_x_m: tuple = (0.25, 0.75)
+    box_y_m: tuple = (-0.30, 0.30)
+    box_z_m: tuple = (0.0, 0.60)
+    table_z_m: float = 0.0
+    table_margin_m: float = 0.005
+    tip_radius_m: float = 0.010
+    tip_speed_mps: float = 0.10
+    approach_speed_mps: float = 0.02
+    max_joint_velocity_rad_s: tuple = (1.0,) * 7
+    max_joint_acceleration_rad_s2: tuple = (2.0,) * 7
+    waypoint_step_m: float = 0.01
+    approach_step_m: float = 0.005
+    max_joint_step_rad: float = 0.3
+    ik_tol_m: float = 1e-4
+    max_tilt_rad: float = 0.10
+    goal_tolerance_rad: float = 0.002
+    goal_time_tolerance_s: float = 2.0
+    watchdog_timeout_s: float = 0.5
+    control_period_s: float = 0.01
+    dry_run: bool = False
+    trajectory_topic: str = topics.JOINT_TRAJECTORY
+    planned_topic: str = "~/planned_trajectory"
+    publish_fingertip_pose: bool = True
+
+
+@dataclass
+class _Task:
+    kind: str
+    traj: TimedTrajectory
+    start_s: float
+    contact_start_s: float = np.inf
+    result: TaskResult = TaskResult.UNKNOWN
+    contact: Optional[np.ndarray] = None  # the CONTACT_DTYPE record that stopped it
+    contact_stamp_ns: int = 0
+    reason: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+class ArmCommander:
+    """Verbs on the arm through ros2_control's topics; see the module docstring."""
+
+    def __init__(self, node: Node, config: CommanderConfig,
+                 on_state: Optional[Callable[[np.ndarray, np.ndarray, object], None]] = None) -> None:
+        self.node = node
+        self.cfg = c = config
+        self.log = node.get_logger()
+        self.model = ArmModel(c.urdf_path, list(c.joint_names), c.flange_frame, c.tip_offset_m)
+        self.box = WorkspaceBox.from_params(c.box_x_m, c.box_y_m, c.box_z_m, c.table_z_m, c.table_margin_m, c.tip_radius_m)
+        self.limits = MotionLimits.for_model(self.model, list(c.max_joint_velocity_rad_s),
+                                             list(c.max_joint_acceleration_rad_s2), c.tip_speed_mps)
+        self.ik = IKSettings(tol_m=c.ik_tol_m, max_tilt_rad=c.max_tilt_rad)
+        self.home = home_configuration(self.model, c.home_rad)
+        self.estop = EStopLatch()
+        self.watchdog = Watchdog(c.watchdog_timeout_s)
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.q: Optional[np.ndarray] = None  # measured joints
+        self.tip_xyz: Optional[np.ndarray] = None
+        self.odometer_m = 0.0  # tip path length over all measured states
+        self.approach_origin_xyz: Optional[np.ndarray] = None
+        self._task: Optional[_Task] = None
+        self._last: Optional[_Task] = None
+        self.counters = {"invalid_joint_states": 0, "invalid_contacts": 0, "stops": 0, "rejected": 0}
+        self._on_state = on_state
+        self._pub_traj = node.create_publisher(JointTrajectory, c.trajectory_topic, qos.EVENTS)
+        self._pub_planned = node.create_publisher(JointTrajectory, c.planned_topic, qos.EVENTS)
+        self._pub_pose = node.create_publisher(
+            arm_msgs.PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR) if c.publish_fingertip_pose else None
+        node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state, qos.SENSOR)
+        node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.EVENTS)
+        node.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.LATCHED)
+        node.create_timer(c.control_period_s, self._update, clock=self._steady)
+
+    # -- verbs ------------------------------------------------------------------
+    def follow_path(self, path_xyz: np.ndarray) -> bool:
+        """Move the tip along a polyline (K, 3), world frame, at up to ``tip_speed_mps``."""
+        return self._start("follow_path", np.asarray(path_xyz, dtype=float).reshape(-1, 3),
+                           self.cfg.tip_speed_mps, self.cfg.waypoint_step_m)
+
+    def approach(self, direction_xyz: np.ndarray, max_depth_m: float) -> bool:
+        """Guarded move along ``direction_xyz`` (world) for ``max_depth_m`` at ``approach_speed_mps``.
+
+        Ends as CONTACT on the first label-1 point on /tactile/contacts (the
+        arm is stopped at once), or SUCCEEDED at full depth. ``retract()``
+        returns to the start of the approach.
+        """
+        d = np.asarray(direction_xyz, dtype=float).reshape(3)
+        n = np.linalg.norm(d)
+        if not np.isfinite(n) or n < 1e-9 or not max_depth_m > 0:
+            return self._reject("approach", "direction must be a non-zero vector and max depth positive")
+        if self.tip_xyz is None and not self.cfg.dry_run:
+            return self._reject("approach", "no joint state yet")
+        origin = self._plan_start()[1]
+        ok = self._start("approach", origin + d / n * max_depth_m, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+        if ok:
+            self.approach_origin_xyz = origin
+        return ok
+
+    def retract(self) -> bool:
+        """Straight back to where the last approach began, at approach speed."""
+        if self.approach_origin_xyz is None:
+            return self._reject("retract", "no approach to retract from")
+        return self._start("retract", self.approach_origin_xyz[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+
+    def stop(self) -> None:
+        """Stop now and hold (empty trajectory); the current task ends CANCELED."""
+        self._halt(TaskResult.CANCELED, "stop requested")
+
+    def is_task_complete(self) -> bool:
+        return self._task is None
+
+    def get_result(self) -> TaskResult:
+        return self._last.result if self._last is not None else TaskResult.UNKNOWN
+
+    @property
+    def last_task(self) -> Optional[_Task]:
+        """The finished task: result, reason, contact record and its stamp, trajectory."""
+        return self._last
+
+    def wait_until_complete(self, timeout_s: float) -> TaskResult:
+        """Spin the node until the task ends or ``timeout_s`` (wall) passes (then stop: ABORTED)."""
+        import rclpy
+
+        deadline = self._steady.now().nanoseconds * 1e-9 + timeout_s
+        while self._task is not None and self._steady.now().nanoseconds * 1e-9 < deadline:
+            rclpy.spin_once(self.node, timeout_sec=self.cfg.control_period_s)
+        if self._task is not None:
+            self._halt(TaskResult.ABORTED, f"no result within {timeout_s:.1f} s")
+        return self.get_result()
+
+    def plan(self, path_xyz: np.ndarray, q_start: Optional[np.ndarray] = None, speed_mps: Optional[float] = None,
+             step_m: Optional[float] = None) -> TimedTrajectory:
+        """Check the box and plan a trajectory (no motion). Raises OutsideWorkspace / TrajectoryError."""
+        q0 = self._plan_start()[0] if q_start is None else np.asarray(q_start, dtype=float)
+        path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+        self.box.check(path)
+        limits = MotionLimits(self.limits.lower_rad, self.limits.upper_rad, self.limits.velocity_rad_s,
+                              self.limits.acceleration_rad_s2, speed_mps or self.cfg.tip_speed_mps)
+        traj = plan_tip_path(self.model, path, q0, limits, step_m or self.cfg.waypoint_step_m, self.ik,
+                             self.cfg.max_joint_step_rad)
+        self.box.check(traj.tip_xyz[1:])
+        return traj
+
+    # -- internals ----------------------------------------------------------------
+    def now_s(self) -> float:
+        return self.node.get_clock().now().nanoseconds * 1e-9
+
+    def _plan_start(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint vector and tip to plan from: measured, or (dry run without state) the last plan's end / home."""
+        if self.q is not None and not (self.cfg.dry_run and self._last is not None):
+            q = self.q
+        elif self._last is not None:
+            q = self._last.traj.positions_rad[-1]
+        else:
+            q = self.q if self.q is not None else self.home
+        return q, self.model.fk(q)[0]
+
+    def _reject(self, kind: str, reason: str) -> bool:
+        self.counters["rejected"] += 1
+        self.log.warning(f"{kind} rejected: {reason}")
+        self._last = _Task(kind, TimedTrajectory(np.zeros(1), np.zeros((1, self.model.nq)), np.zeros((1, self.model.nq)),
+                                                 np.zeros((1, 3))), self.now_s(), result=TaskResult.REJECTED, reason=reason)
+        return False
+
+    def _start(self, kind: str, path_xyz: np.ndarray, speed_mps: float, step_m: float) -> bool:
+        if self._task is not None:
+            return self._reject(kind, f"busy with {self._task.kind}")
+        if self.estop.engaged:
+            return self._reject(kind, "e-stop engaged")
+        if not self.cfg.dry_run and (self.q is None or self.watchdog.is_stale(self._steady_s())):
+            return self._reject(kind, "no recent joint state")
+        try:
+            traj = self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            return self._reject(kind, str(exc))
+        msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        self._pub_planned.publish(msg)
+        task = _Task(kind, traj, self.now_s())
+        if self.cfg.dry_run:
+            task.result, task.reason = TaskResult.SUCCEEDED, "dry run: planned, not sent"
+            self._last = task
+            return True
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0  # ros2_control: start now
+        self._pub_traj.publish(msg)
+        self._task = task
+        return True
+
+    def _halt(self, result: TaskResult, reason: str) -> None:
+        """Send the stop (empty trajectory: hold position) and end the task."""
+        if not self.cfg.dry_run:
+            self._pub_traj.publish(arm_msgs.trajectory_msg(None, self.model.joint_names))
+            self.counters["stops"] += 1
+        self._finish(result, reason)
+
+    def _finish(self, result: TaskResult, reason: str) -> None:
+        if self._task is None:
+            return
+        self._task.result, self._task.reason = result, reason
+        self._last, self._task = self._task, None
+        text = f"{self._last.kind}: {result.name.lower()} ({reason})"
+        if result in (TaskResult.SUCCEEDED, TaskResult.CONTACT):  # rclpy: one severity per call site
+            self.log.info(text)
+        else:
+            self.log.warning(text)
+
+    def _steady_s(self) -> float:
+        return self._steady.now().nanoseconds * 1e-9
+
+    # -- callbacks ----------------------------------------------------------------
+    def _on_joint_state(self, msg: JointState) -> None:
+        q = arm_msgs.joint_positions(msg, self.model.joint_names)
+        if q is None:
+            self.counters["invalid_joint_states"] += 1
+            self.log.warning(f"joint state without finite positions for {list(self.model.joint_names)}; ignored",
+                             throttle_duration_sec=5.0)
+            return
+        self.watchdog.feed(self._steady_s())
+        p, R = self.model.fk(q)
+        if self.tip_xyz is not None:
+            self.odometer_m += float(np.linalg.norm(p - self.tip_xyz))
+        self.q, self.tip_xyz = q, p
+        if self._pub_pose is not None:
+            self._pub_pose.publish(arm_msgs.pose_stamped(p, R, topics.WORLD_FRAME, msg.header.stamp))
+        if self._on_state is not None:
+            self._on_state(q, p, msg.header.stamp)
+
+    def _on_contacts(self, msg: PointCloud2) -> None:
+        try:
+            points = from_pointcloud2(msg, list(fields.CONTACT_DTYPE.names))
+        except PointCloudError as exc:
+            self.counters["invalid_contacts"] += 1
+            self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
+            return
+        task = self._task
+        if task is None or task.kind != "approach":
+            return
+        stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
+        hits = points[points["label"] == fields.LABEL_CONTACT]
+        if len(hits) and stamp_ns * 1e-9 >= task.start_s - 1e-3:
+            task.contact, task.contact_stamp_ns = hits[0], stamp_ns
+            self._halt(TaskResult.CONTACT, f"contact at {np.round(fields.xyz(hits[:1])[0], 4).tolist()}")
+
+    def _on_estop(self, msg: Bool) -> None:
+        if self.estop.set(msg.data):
+            self.log.error("e-stop engaged: stopping")
+        if self.estop.engaged:
+            if self._task is not None:
+                self._halt(TaskResult.ABORTED, "e-stop")
+            elif not self.cfg.dry_run:
+                self._pub_traj.publish(arm_msgs.trajectory_msg(None, self.model.joint_names))
+        else:
+            self.log.info("e-stop released")
+
+    def _update(self) -> None:
+        """Control tick (steady clock): watchdog, completion, time-outs."""
+        task = self._task
+        if task is None:
+            return
+        if self.watchdog.is_stale(self._steady_s()):
+            self._halt(TaskResult.ABORTED, f"joint states stale for {self.watchdog.age_s(self._steady_s()):.2f} s")
+            return
+        elapsed = self.now_s() - task.start_s
+        if elapsed < task.traj.duration_s:
+            return
+        err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
+        if err <= self.cfg.goal_tolerance_rad:
+            self._finish(TaskResult.SUCCEEDED, f"{task.traj.length_m:.3f} m in {elapsed:.2f} s")
+        elif elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+            self._halt(TaskResult.ABORTED, f"goal not reached: joint error {err:.3f} rad")

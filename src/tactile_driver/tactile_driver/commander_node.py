@@ -1,0 +1,138 @@
+"""Node ``arm_commander``: executes touches (goal + path) on the arm through ros2_control's topics.
+
+In:  /planner/goal (PoseStamped), /planner/path (Path, same stamp as its goal),
+     /joint_states, /tactile/contacts, /arm/estop (latched Bool).
+Out: /joint_trajectory_controller/joint_trajectory (JointTrajectory),
+     ~/planned_trajectory (every planned trajectory, also in dry run),
+     /arm/fingertip_pose, /tactile/contacts (the free-space point, label 0),
+     /arm/touch_done (DiagnosticStatus). See docs/arm.md.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+
+from tactile_common import fields, qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_common.pointcloud import to_pointcloud2
+from tactile_driver import arm_msgs
+from tactile_driver.commander_api import ArmCommander, CommanderConfig
+from tactile_driver.kinematics import KinematicsError
+from tactile_driver.touch_executor import OUTCOME_ABORTED, OUTCOME_UNREACHABLE, TouchExecutor, TouchReport, TouchRequest
+
+_D = CommanderConfig()
+PARAMS = {
+    "urdf_path": (_D.urdf_path, "URDF of the arm; '' = Franka Panda from example-robot-data"),
+    "joint_names": (list(_D.joint_names), "actuated joints, in command order"),
+    "flange_frame": (_D.flange_frame, "URDF frame the finger is mounted on"),
+    "tip_offset_m": (_D.tip_offset_m, "tip centre along the flange z-axis"),
+    "home_rad": (list(_D.home_rad), "home joints (planning start in dry run without joint states)"),
+    "box_x_m": (list(_D.box_x_m), "safety box of the tip centre, world x [min, max]"),
+    "box_y_m": (list(_D.box_y_m), "safety box y [min, max]"),
+    "box_z_m": (list(_D.box_z_m), "safety box z [min, max]"),
+    "table_z_m": (_D.table_z_m, "table top height"),
+    "table_margin_m": (_D.table_margin_m, "tip centre stays above table + margin + tip radius"),
+    "tip_radius_m": (_D.tip_radius_m, "fingertip radius"),
+    "tip_speed_mps": (_D.tip_speed_mps, "max tip speed along the free-space path"),
+    "approach_speed_mps": (_D.approach_speed_mps, "tip speed of the guarded approach and the retract"),
+    "standoff_m": (0.01, "pre-touch standoff from the candidate surface (the planner's value)"),
+    "max_depth_m": (0.02, "approach depth beyond the candidate before a free-space observation"),
+    "dwell_s": (0.5, "pause at the end of the approach"),
+    "max_joint_velocity_rad_s": (list(_D.max_joint_velocity_rad_s), "per-joint speed cap (URDF limit if lower)"),
+    "max_joint_acceleration_rad_s2": (list(_D.max_joint_acceleration_rad_s2), "per-joint acceleration cap"),
+    "waypoint_step_m": (_D.waypoint_step_m, "max tip step between IK waypoints on the path"),
+    "approach_step_m": (_D.approach_step_m, "max tip step between IK waypoints on approach/retract"),
+    "max_joint_step_rad": (_D.max_joint_step_rad, "max joint change between waypoints (IK branch flip guard)"),
+    "ik_tol_m": (_D.ik_tol_m, "IK position tolerance"),
+    "max_tilt_rad": (_D.max_tilt_rad, "max finger tilt from vertical"),
+    "goal_tolerance_rad": (_D.goal_tolerance_rad, "joint error accepted at the end of a trajectory"),
+    "goal_time_tolerance_s": (_D.goal_time_tolerance_s, "extra time to reach it before aborting"),
+    "watchdog_timeout_s": (_D.watchdog_timeout_s, "joint states older than this (steady clock) stop motion"),
+    "control_period_s": (_D.control_period_s, "watchdog / completion check period (steady clock)"),
+    "dry_run": (False, "plan and publish on ~/planned_trajectory only; send nothing to the controller"),
+    "trajectory_topic": (_D.trajectory_topic, "ros2_control joint_trajectory_controller input"),
+}
+
+
+class ArmCommanderNode(Node):
+    def __init__(self) -> None:
+        super().__init__("arm_commander")
+        p = declare_parameters(self, PARAMS)
+        cfg = CommanderConfig(**{k: v for k, v in vars(p).items() if k in CommanderConfig.__dataclass_fields__})
+        try:
+            self.arm = ArmCommander(self, cfg)
+        except KinematicsError as exc:
+            raise ValueError(str(exc)) from None
+        self.touches = TouchExecutor(self.arm, p.standoff_m + p.tip_radius_m + p.max_depth_m, p.dwell_s,
+                                     self._publish_free_space, self._publish_done)
+        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
+        self._pub_done = self.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
+        self._goals: dict[int, PoseStamped] = {}
+        self._paths: dict[int, Path] = {}
+        self.invalid_goals = 0
+        self.create_subscription(PoseStamped, topics.GOAL, self._on_goal, qos.EVENTS)
+        self.create_subscription(Path, topics.PATH, self._on_path, qos.EVENTS)
+        self.create_timer(cfg.control_period_s, self.touches.update, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.get_logger().info(
+            f"arm_commander ready: {self.arm.model.nq} joints, tip {cfg.tip_offset_m} m from {cfg.flange_frame}, "
+            f"box {self.arm.box.lower_xyz.tolist()} .. {self.arm.box.upper_xyz.tolist()}, dry_run={cfg.dry_run}"
+        )
+
+    def _on_goal(self, msg: PoseStamped) -> None:
+        self._goals[arm_msgs.stamp_ns(msg.header.stamp)] = msg
+        self._pair(arm_msgs.stamp_ns(msg.header.stamp))
+
+    def _on_path(self, msg: Path) -> None:
+        self._paths[arm_msgs.stamp_ns(msg.header.stamp)] = msg
+        self._pair(arm_msgs.stamp_ns(msg.header.stamp))
+
+    def _pair(self, stamp_ns: int) -> None:
+        """A goal and its path (same header.stamp) make one touch request."""
+        if stamp_ns not in self._goals or stamp_ns not in self._paths:
+            return
+        goal, path = self._goals.pop(stamp_ns), self._paths.pop(stamp_ns)
+        for old in [s for s in self._goals if s < stamp_ns]:
+            self._goals.pop(old)
+        for old in [s for s in self._paths if s < stamp_ns]:
+            self._paths.pop(old)
+        try:
+            position, rotation = arm_msgs.pose_arrays(goal.pose)
+            path_xyz = arm_msgs.path_xyz(path)
+            if not (np.all(np.isfinite(position)) and np.all(np.isfinite(path_xyz))):
+                raise ValueError("goal or path is not finite")
+        except ValueError as exc:
+            self.invalid_goals += 1
+            self.get_logger().error(f"invalid goal {stamp_ns}: {exc}")
+            return self._publish_done(TouchReport(stamp_ns, OUTCOME_UNREACHABLE, str(exc), None, 0.0, 0.0))
+        self.touches.submit(TouchRequest(stamp_ns, position, rotation[:, 0], path_xyz))
+
+    def _publish_free_space(self, tip_xyz: np.ndarray, stamp_ns: int) -> None:
+        point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+        point["x"], point["y"], point["z"] = tip_xyz
+        point["label"] = fields.LABEL_FREE_SPACE
+        stamp = arm_msgs.Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, stamp))
+
+    def _publish_done(self, report: TouchReport) -> None:
+        level = {OUTCOME_UNREACHABLE: DiagnosticStatus.WARN, OUTCOME_ABORTED: DiagnosticStatus.ERROR}
+        msg = DiagnosticStatus(level=level.get(report.outcome, DiagnosticStatus.OK), name="touch",
+                               message=report.outcome, hardware_id="arm")
+        msg.values = [KeyValue(key=k, value=v) for k, v in report.values().items()]
+        self._pub_done.publish(msg)
+        text = (f"touch {report.goal_stamp_ns}: {report.outcome} {report.reason} "
+                f"(travel {report.travel_m:.3f} m, {report.duration_s:.2f} s)")
+        if report.outcome in ("contact", "free_space"):  # rclpy: one severity per call site
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
+
+
+def main(args=None) -> int:
+    return run_node(ArmCommanderNode, args)

@@ -1,0 +1,157 @@
+"""One touch as a state machine over the :class:`ArmCommander` verbs (docs/architecture.md, touch cycle).
+
+    validate -> follow_path -> approach -> (contact | free space) -> dwell -> retract -> done
+
+Validation plans the whole touch first (path, then the approach from the
+path's end configuration; box + IK): an infeasible touch is reported as
+``unreachable`` and nothing moves. An approach that reaches its depth
+without contact publishes the free-space point (tip centre, label 0).
+Any abort (e-stop, stale joint states, time-out) ends the touch as
+``aborted``. In dry-run mode the three motions are planned and published
+for inspection only and the touch ends as ``aborted`` (reason ``dry_run``).
+No message handling here: the node passes the commander and two publish callbacks.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import numpy as np
+
+from tactile_driver.commander_api import ArmCommander, TaskResult
+from tactile_driver.safety import OutsideWorkspace
+from tactile_driver.trajectory import TrajectoryError
+
+OUTCOME_CONTACT = "contact"
+OUTCOME_FREE_SPACE = "free_space"
+OUTCOME_UNREACHABLE = "unreachable"
+OUTCOME_ABORTED = "aborted"
+
+
+@dataclass
+class TouchRequest:
+    goal_stamp_ns: int
+    pre_touch_xyz: np.ndarray  # world, m
+    approach_dir: np.ndarray  # unit, world (the goal's x-axis)
+    path_xyz: np.ndarray  # (K, 3) world, m
+
+
+@dataclass
+class TouchReport:
+    goal_stamp_ns: int
+    outcome: str
+    reason: str
+    observation_stamp_ns: Optional[int]
+    travel_m: float
+    duration_s: float
+
+    def values(self) -> dict:
+        return {
+            "goal_stamp_ns": str(self.goal_stamp_ns),
+            "observation_stamp_ns": "" if self.observation_stamp_ns is None else str(self.observation_stamp_ns),
+            "travel_m": f"{self.travel_m:.6f}",
+            "duration_s": f"{self.duration_s:.6f}",
+            "reason": self.reason,
+        }
+
+
+class TouchExecutor:
+    """Runs queued touches one after the other; call :meth:`update` periodically."""
+
+    def __init__(self, arm: ArmCommander, approach_length_m: float, dwell_s: float,
+                 publish_free_space: Callable[[np.ndarray, int], None],
+                 publish_done: Callable[[TouchReport], None]) -> None:
+        if approach_length_m <= 0:
+            raise ValueError("approach length (standoff + tip radius + max depth) must be positive")
+        self.arm = arm
+        self.approach_length_m = float(approach_length_m)
+        self.dwell_s = float(dwell_s)
+        self._publish_free_space = publish_free_space
+        self._publish_done = publish_done
+        self.queue: deque[TouchRequest] = deque()
+        self._req: Optional[TouchRequest] = None
+        self._state = "idle"
+        self._t0_s = 0.0
+        self._odo0_m = 0.0
+        self._dwell_until_s = 0.0
+        self._outcome = ""
+        self._obs_stamp_ns: Optional[int] = None
+        self._travel_planned_m = 0.0
+
+    @property
+    def busy(self) -> bool:
+        return self._req is not None
+
+    def submit(self, request: TouchRequest) -> None:
+        self.queue.append(request)
+        self.update()
+
+    def update(self) -> None:
+        if self._req is None:
+            if self.queue:
+                self._begin(self.queue.popleft())
+            return
+        arm = self.arm
+        if not arm.is_task_complete():
+            return
+        result, task = arm.get_result(), arm.last_task
+        if self._state == "path":
+            if result != TaskResult.SUCCEEDED:
+                return self._done(OUTCOME_ABORTED, f"path: {task.reason}")
+            self._travel_planned_m += task.traj.length_m
+            if not arm.approach(self._req.approach_dir, self.approach_length_m):
+                return self._done(OUTCOME_ABORTED, f"approach: {arm.last_task.reason}")
+            self._state = "approach"
+        elif self._state == "approach":
+            self._travel_planned_m += task.traj.length_m
+            if arm.cfg.dry_run:
+                self._outcome = OUTCOME_ABORTED
+            elif result == TaskResult.CONTACT:
+                self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, task.contact_stamp_ns
+            elif result == TaskResult.SUCCEEDED:
+                stamp_ns = int(round(arm.now_s() * 1e9))
+                # The probe end: FK of the final commanded joints (the arm is there within goal tolerance).
+                self._publish_free_space(arm.model.fk(task.traj.positions_rad[-1])[0], stamp_ns)
+                self._outcome, self._obs_stamp_ns = OUTCOME_FREE_SPACE, stamp_ns
+            else:
+                return self._done(OUTCOME_ABORTED, f"approach: {task.reason}")
+            self._dwell_until_s = arm.now_s() + (0.0 if arm.cfg.dry_run else self.dwell_s)
+            self._state = "dwell"
+        elif self._state == "dwell":
+            if arm.now_s() < self._dwell_until_s:
+                return
+            if arm.estop.engaged:
+                return self._done(OUTCOME_ABORTED, "e-stop")
+            if not arm.retract():
+                return self._done(OUTCOME_ABORTED, f"retract: {arm.last_task.reason}")
+            self._state = "retract"
+        elif self._state == "retract":
+            if result != TaskResult.SUCCEEDED:
+                return self._done(OUTCOME_ABORTED, f"retract: {task.reason}")
+            self._travel_planned_m += task.traj.length_m
+            self._done(self._outcome, "dry_run: planned, not executed" if arm.cfg.dry_run else "")
+
+    def _begin(self, req: TouchRequest) -> None:
+        self._req, self._t0_s, self._odo0_m = req, self.arm.now_s(), self.arm.odometer_m
+        self._obs_stamp_ns, self._outcome, self._travel_planned_m = None, "", 0.0
+        path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
+        try:  # plan the whole touch before moving
+            to_goal = self.arm.plan(path)
+            self.arm.plan(req.pre_touch_xyz + self.approach_length_m * req.approach_dir,
+                          q_start=to_goal.positions_rad[-1], speed_mps=self.arm.cfg.approach_speed_mps,
+                          step_m=self.arm.cfg.approach_step_m)
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            return self._done(OUTCOME_UNREACHABLE, str(exc))
+        if not self.arm.follow_path(path):
+            return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
+        self._state = "path"
+
+    def _done(self, outcome: str, reason: str) -> None:
+        req = self._req
+        travel = self._travel_planned_m if self.arm.cfg.dry_run else self.arm.odometer_m - self._odo0_m
+        report = TouchReport(req.goal_stamp_ns, outcome, reason, self._obs_stamp_ns,
+                             0.0 if outcome == OUTCOME_UNREACHABLE else travel, self.arm.now_s() - self._t0_s)
+        self._req, self._state = None, "idle"
+        self._publish_done(report)

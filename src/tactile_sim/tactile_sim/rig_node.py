@@ -1,0 +1,143 @@
+"""Node ``sim_rig``: the simulated arm, clock, object and tactile sensor device.
+
+Per tick of ``rate_hz`` simulated time (ticks run at ``real_time_factor`` ×
+wall time, steady clock): advance /clock, sample the emulated
+joint_trajectory_controller, publish /joint_states, put the fingertip at its
+forward kinematics and let the simulated sensor device write the frames due
+(on the pty behind ``sensor_link_path``). The arm is not stopped by the
+object: the commander's guarded approach must stop it.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
+
+from tactile_common import qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
+from tactile_sim.controller import TrajectoryController, TrajectoryRejected
+
+HOME_RAD = [0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]  # Panda: tip at (0.50, 0.00, 0.35), finger vertical
+
+PARAMS = {
+    "urdf_path": ("", "URDF of the arm; '' = Franka Panda from example-robot-data"),
+    "joint_names": (list(PANDA_JOINTS), "controlled joints"),
+    "flange_frame": (PANDA_FLANGE, "URDF frame the finger is mounted on"),
+    "tip_offset_m": (0.16, "tip centre along the flange z-axis"),
+    "home_rad": (HOME_RAD, "initial joint positions"),
+    "rate_hz": (100.0, "controller, /joint_states and /clock rate in simulated time"),
+    "real_time_factor": (1.0, "simulated seconds per wall second"),
+    "trajectory_topic": (topics.JOINT_TRAJECTORY, "joint_trajectory_controller input"),
+    "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
+    "mode": ("2d", "2d (prism contour) or 3d"),
+    "object_xy_m": ([0.50, 0.0], "object centre on the table (world)"),
+    "object_yaw_rad": (0.0, "object yaw"),
+    "object_scale": (1.0, "object scale"),
+    "prism_height_m": (0.12, "prism height in 2D mode"),
+    "sensor_enabled": (True, "serve the simulated tactile sensor on a pty"),
+    "sensor_link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
+    "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's ring (2d) / hemisphere (3d)"),
+    "sensor_frame_rate_hz": (200.0, "sensor frame rate (simulated time)"),
+    "sensor_seed": (0, "seed of the sensor noise and faults"),
+    "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
+    "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
+    "fault.drop_prob": (0.0, "per frame: frame not sent"),
+    "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
+    "fault.disconnect_at_s": (-1.0, "simulated time of a disconnect (negative: never)"),
+    "fault.disconnect_for_s": (1.0, "disconnect length"),
+}
+
+
+def _default_layout(mode: str) -> str:
+    from ament_index_python.packages import get_package_share_directory
+
+    name = "taxels_ring.yaml" if mode == "2d" else "taxels_hemisphere.yaml"
+    return os.path.join(get_package_share_directory("tactile_driver"), "config", name)
+
+
+class SimRig(Node):
+    def __init__(self) -> None:
+        super().__init__("sim_rig")
+        p = declare_parameters(self, PARAMS)
+        if p.rate_hz <= 0 or p.real_time_factor <= 0:
+            raise ValueError("rate_hz and real_time_factor must be positive")
+        try:
+            self.model = ArmModel(p.urdf_path, p.joint_names, p.flange_frame, p.tip_offset_m)
+        except KinematicsError as exc:
+            raise ValueError(str(exc)) from None
+        q0 = home_configuration(self.model, p.home_rad)
+        self.controller = TrajectoryController(self.model.joint_names, q0)
+        self.dt_s = 1.0 / p.rate_hz
+        self.t_s = 0.0
+        self.device = self._make_device(p) if p.sensor_enabled else None
+        self._pub_clock = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
+        self._pub_js = self.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+        self.create_subscription(JointTrajectory, p.trajectory_topic, self._on_trajectory, qos.EVENTS)
+        # The rig is the clock source: it ticks on the steady clock, whatever use_sim_time says.
+        self.create_timer(self.dt_s / p.real_time_factor, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        tip = self.model.fk(q0)[0]
+        self.get_logger().info(
+            f"sim_rig: {p.rate_hz:.0f} Hz x{p.real_time_factor:g} real time, tip at {np.round(tip, 3).tolist()}, "
+            f"object '{p.object}' ({p.mode}) at {list(p.object_xy_m)}"
+            + (f", sensor on {p.sensor_link_path}" if self.device else ", no sensor")
+        )
+
+    def _make_device(self, p):
+        from tactile_driver.taxels import load_layout
+        from tactile_sim.objects import make_object
+        from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
+
+        obj = make_object(p.object, p.mode, tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
+        layout = load_layout(p.sensor_layout or _default_layout(p.mode))
+        faults = FaultConfig(garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob,
+                             drop_prob=p.fault_drop_prob, stuck_taxel=p.fault_stuck_taxel,
+                             disconnect_at_s=p.fault_disconnect_at_s, disconnect_for_s=p.fault_disconnect_for_s)
+        device = SimulatedSensorDevice(obj, layout, p.sensor_link_path, p.sensor_frame_rate_hz, p.sensor_seed, faults)
+        device.open()
+        return device
+
+    def _on_trajectory(self, msg: JointTrajectory) -> None:
+        times = np.array([pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points])
+        positions = np.array([list(pt.positions) for pt in msg.points], dtype=float).reshape(len(times), -1)
+        has_vel = len(msg.points) > 0 and all(len(pt.velocities) for pt in msg.points)
+        velocities = np.array([list(pt.velocities) for pt in msg.points], dtype=float) if has_vel else None
+        start_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        try:
+            self.controller.command(self.t_s, msg.joint_names, times, positions, velocities, start_s)
+        except (TrajectoryRejected, ValueError) as exc:
+            self.get_logger().error(f"trajectory rejected ({self.controller.rejected} so far): {exc}")
+
+    def _tick(self) -> None:
+        self.t_s += self.dt_s
+        stamp = self._stamp(self.t_s)
+        self._pub_clock.publish(ClockMsg(clock=stamp))
+        q, qd = self.controller.state(self.t_s)
+        js = JointState(name=list(self.model.joint_names), position=q.tolist(), velocity=qd.tolist())
+        js.header.stamp = stamp
+        self._pub_js.publish(js)
+        if self.device is not None:
+            self.device.set_pose(*self.model.fk(q))
+            self.device.step(self.t_s)
+
+    @staticmethod
+    def _stamp(t_s: float):
+        from builtin_interfaces.msg import Time
+
+        ns = int(round(t_s * 1e9))
+        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+    def close(self) -> None:
+        if self.device is not None:
+            self.device.close()
+
+
+def main(args=None) -> int:
+    return run_node(SimRig, args)

@@ -1,0 +1,73 @@
+"""sim_rig + arm_commander processes: a touch that misses gives a free-space point; unreachable goals move nothing."""
+
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from sensor_msgs.msg import JointState, PointCloud2
+from trajectory_msgs.msg import JointTrajectory
+
+from tactile_common import fields, qos, topics
+from tactile_common.pointcloud import from_pointcloud2
+
+from graph_helpers import done_values, goal_and_path
+
+pytestmark = pytest.mark.graph
+
+ROOT = FsPath(__file__).resolve().parents[2]
+SIM = ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
+       "-p", "sensor_enabled:=false", "-p", "real_time_factor:=4.0"]
+ARM = ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
+       "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1"]
+APPROACH_M = 0.01 + 0.01 + 0.02  # standoff + tip radius + max depth (config defaults)
+
+
+def _publish_touch(graph, pre, direction, path, stamp_ns):
+    goal_pub = graph.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
+    path_pub = graph.node.create_publisher(Path, topics.PATH, qos.EVENTS)
+    graph.wait_for(lambda: goal_pub.get_subscription_count() and path_pub.get_subscription_count(), 20, "commander subscriptions")
+    goal, path_msg = goal_and_path(pre, direction, path, stamp_ns)
+    path_pub.publish(path_msg)  # path first: pairing must not depend on order
+    goal_pub.publish(goal)
+
+
+def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_graph):
+    g = ros_graph
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
+    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.start("sim", SIM)
+    g.start("arm", ARM)
+    g.wait_for(lambda: len(poses) > 5, 30, "fingertip poses")
+    # Far from the object (circle at (0.5, 0)): the approach ends in free space.
+    pre, direction = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])
+    path = np.array([[0.50, 0.0, 0.35], [0.42, 0.12, 0.10], pre])
+    _publish_touch(g, pre, direction, path, 1_000_000_123)
+    g.wait_for(lambda: len(done) >= 1, 40, "touch_done")
+    v = done_values(done[0])
+    assert done[0].message == "free_space", v
+    assert v["goal_stamp_ns"] == "1000000123"
+    free = [from_pointcloud2(m) for m in contacts]
+    assert len(free) == 1 and free[0]["label"][0] == fields.LABEL_FREE_SPACE
+    np.testing.assert_allclose(fields.xyz(free[0])[0], pre + APPROACH_M * direction, atol=1e-3)
+    assert int(v["observation_stamp_ns"]) == contacts[0].header.stamp.sec * 10**9 + contacts[0].header.stamp.nanosec
+    path_len = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
+    assert abs(float(v["travel_m"]) - (path_len + 2 * APPROACH_M)) < 0.01
+    # Back at the pre-touch pose.
+    g.wait_for(lambda: len(poses) and np.linalg.norm([poses[-1].pose.position.x - pre[0], poses[-1].pose.position.y - pre[1],
+                                                      poses[-1].pose.position.z - pre[2]]) < 1e-3, 10, "tip at pre-touch")
+    n_traj = len(trajs)
+    assert n_traj == 3  # path, approach, retract
+
+    # Outside the safety box (below the table floor): reported, nothing sent.
+    _publish_touch(g, np.array([0.40, 0.20, 0.005]), direction, [[0.40, 0.20, 0.06]], 2_000_000_000)
+    g.wait_for(lambda: len(done) >= 2, 20, "second touch_done")
+    assert done[1].message == "unreachable" and "safety box" in done_values(done[1])["reason"]
+    assert done[1].level == DiagnosticStatus.WARN
+    g.spin_once(0.5)
+    assert len(trajs) == n_traj
+    assert g.procs["arm"].alive() and g.procs["sim"].alive()
