@@ -7,10 +7,12 @@ dicts of rosbag2's ``offered_qos_profiles`` (:mod:`tactile_bringup.mcap_recorder
 from __future__ import annotations
 
 import importlib
-from typing import Any, Dict, List, Mapping, Sequence
+from types import SimpleNamespace
+from typing import Any, Dict, List, Mapping, Sequence, Tuple
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (
@@ -23,6 +25,7 @@ from rclpy.qos import (
 
 from tactile_bringup.mcap_recorder import qos_profile_dict
 from tactile_bringup.msgdefs import split_type_name
+from tactile_common.params import declare_parameters
 
 
 def message_class(type_name: str) -> Any:
@@ -82,7 +85,18 @@ def adapted_qos(
 
 def string_list_parameter(node: Node, name: str, description: str) -> List[str]:
     """Declare a string-array parameter that may be left unset (= empty list)."""
-    value = node.declare_parameter(
-        name, Parameter.Type.STRING_ARRAY, ParameterDescriptor(description=description)
-    ).value
+    try:
+        value = node.declare_parameter(
+            name, Parameter.Type.STRING_ARRAY, ParameterDescriptor(description=description)
+        ).value
+    except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+        raise ValueError(f"bad parameter: {exc} (expected a list of strings, e.g. \"['/a', '/b']\")") from None
     return [str(v) for v in (value or []) if str(v)]
+
+
+def declare_checked(node: Node, spec: Mapping[str, Tuple[Any, str]]) -> SimpleNamespace:
+    """``declare_parameters``, with a wrongly typed override as a ValueError (a message, no traceback)."""
+    try:
+        return declare_parameters(node, spec)
+    except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+        raise ValueError(f"bad parameter: {exc}") from None

@@ -18,11 +18,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy
 from rosgraph_msgs.msg import Clock
 
-from tactile_bringup.bag_ros import adapted_qos, message_class, string_list_parameter
+from tactile_bringup.bag_ros import adapted_qos, declare_checked, message_class, string_list_parameter
 from tactile_bringup.player import PlaybackClock, Recording
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
-from tactile_common.params import declare_parameters
 
 _EARLY_S = 0.0005  # publish a message this close to its due time now
 _ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
@@ -31,7 +30,7 @@ _ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
 class PlayerNode(Node):
     def __init__(self) -> None:
         super().__init__("player")
-        p = declare_parameters(self, {
+        p = declare_checked(self, {
             "bag": ("", "path of the .mcap recording to play"),
             "rate": (1.0, "playback speed factor"),
             "loop": (False, "start again at the end"),
@@ -116,8 +115,8 @@ class PlayerNode(Node):
         self._end_pass()
 
     def _end_pass(self) -> None:
-        self._loops += 1
         if self._p.loop:
+            self._loops += 1
             self.get_logger().info(f"pass {self._loops} done; looping")
             self._start_pass()
             return
@@ -149,8 +148,9 @@ class PlayerNode(Node):
             return
         t_s = min((self._pclock.recorded_ns(time.monotonic()) - self._rec.start_ns) * 1e-9, self._rec.duration_s)
         self.get_logger().info(
-            f"pass {self._loops + 1}: played {self._played} messages in all ({self._total} per pass), "
-            f"{t_s:.1f}/{self._rec.duration_s:.1f} s"
+            f"played {self._played}"
+            + (f" messages (pass {self._loops + 1}, {self._total} per pass)" if self._p.loop else f"/{self._total} messages")
+            + f", {t_s:.1f}/{self._rec.duration_s:.1f} s"
         )
 
 

@@ -16,17 +16,16 @@ from typing import Dict, List, Optional
 
 from rclpy.node import Node
 
-from tactile_bringup.bag_ros import adapted_qos, message_class, qos_to_dict, string_list_parameter
+from tactile_bringup.bag_ros import adapted_qos, declare_checked, message_class, qos_to_dict, string_list_parameter
 from tactile_bringup.mcap_recorder import COMPRESSIONS, McapBagWriter
 from tactile_bringup.msgdefs import DefinitionNotFound
 from tactile_common.node_main import run_node
-from tactile_common.params import declare_parameters
 
 
 class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
-        p = declare_parameters(self, {
+        p = declare_checked(self, {
             "output": ("", "path of the .mcap file to write (never overwritten)"),
             "chunk_size_bytes": (1048576, "uncompressed size at which a chunk is written"),
             "compression": ("zstd", f"chunk compression: {', '.join(sorted(COMPRESSIONS))}"),
