@@ -155,3 +155,42 @@ def test_sigkill_keeps_completed_chunks(ros_graph, tmp_path):
     with Reader(fixed) as reader:
         got = [(c.topic, cloud_key(d)) for c, _, d in reader.messages()]
     assert got == [("/cloud", talker_cloud_key())] * n
+
+
+def test_sim_time_log_times_and_exclude(ros_graph, tmp_path):
+    """With use_sim_time, log_time is the /clock time; excluded topics are not recorded."""
+    from rosgraph_msgs.msg import Clock
+
+    path = tmp_path / "sim.mcap"
+    ros_graph.start("recorder", [
+        "recorder", "--ros-args", "-p", f"output:={path}", "-p", "use_sim_time:=true",
+        "-p", "exclude:=['/rosout', '/parameter_events']", "-p", "discovery_period_s:=0.2",
+    ])
+    node = ros_graph.node
+    clock_pub = node.create_publisher(Clock, topics.CLOCK, qos.CLOCK)
+    note_pub = node.create_publisher(String, "/note", qos.EVENTS)
+    sim = {"ticks": 0, "notes": 0, "notes_from": None}
+    t0_ns = 1000 * 10**9
+    tick_ns = 10**8
+
+    def tick():  # /clock at 50 Hz advancing 0.1 s per tick; notes once the recorder listens
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = divmod(t0_ns + sim["ticks"] * tick_ns, 10**9)
+        clock_pub.publish(msg)
+        sim["ticks"] += 1
+        if note_pub.get_subscription_count() and sim["notes_from"] is None:
+            sim["notes_from"] = sim["ticks"] + 10  # give its time source a few clock ticks
+        if sim["notes_from"] is not None and sim["ticks"] >= sim["notes_from"] and sim["notes"] < 10:
+            note_pub.publish(String(data=f"note {sim['notes']}"))
+            sim["notes"] += 1
+
+    node.create_timer(0.02, tick)
+    ros_graph.wait_for(lambda: sim["notes"] == 10 and sim["ticks"] >= sim["notes_from"] + 20, 30, "ten notes")
+    last_clock_ns = t0_ns + sim["ticks"] * tick_ns
+    assert ros_graph.procs["recorder"].stop() == 0
+    with Reader(path) as reader:
+        names = {c.topic for c in reader.connections}
+        notes = [(t, decode(d, "std_msgs/msg/String").data) for c, t, d in reader.messages() if c.topic == "/note"]
+    assert "/rosout" not in names and "/parameter_events" not in names
+    assert [text for _, text in notes] == [f"note {i}" for i in range(10)]
+    assert all(t0_ns <= t <= last_clock_ns for t, _ in notes), "log_time is simulated time"
