@@ -1,0 +1,123 @@
+"""ShapeEstimator: parameters, rejections, map layout, table prior, export."""
+
+import numpy as np
+import pytest
+
+from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, VARIANCE_MAP_DTYPE
+from tactile_gpis.estimator import PARAMETERS, ShapeEstimator, load_params
+
+from shapes import CENTRE_3D, fibonacci_sphere
+
+YAML = __import__("pathlib").Path(__file__).parents[2] / "src/tactile_gpis/config/gpis_estimator.yaml"
+
+
+def small_2d(**kw):
+    return ShapeEstimator.from_params({"lattice.points_per_axis_2d": 32, **kw})
+
+
+def test_yaml_holds_every_parameter_with_the_defaults():
+    p = load_params(YAML)
+    assert set(p) == set(PARAMETERS)
+    assert all(p[k] == PARAMETERS[k][0] for k in p)
+
+
+@pytest.mark.parametrize("params, match", [
+    ({"mode": "4d"}, "mode must be"),
+    ({"kernel.type": "rbf"}, "unknown kernel type"),
+    ({"workspace.max_m": [0.0, 0.0, 0.0]}, "must exceed"),
+    ({"noise.contact_var_m2": -1.0}, ">= 0"),
+    ({"prior.type": "cube"}, "prior.type"),
+    ({"kernel.R_m": 0.1}, "at least the workspace diagonal"),
+    ({"no_such": 1}, "unknown GPIS parameter"),
+])
+def test_bad_parameters_raise_value_errors(params, match):
+    with pytest.raises(ValueError, match=match):
+        ShapeEstimator.from_params(params)
+
+
+def test_invalid_observations_are_rejected_with_reasons_and_counted():
+    est = small_2d()
+    assert est.add_observation([0.5, 0.05, 0.06], [0, 1, 0], 1) == (True, "")
+    cases = [
+        ([np.nan, 0.0, 0.06], "non-finite"),
+        ([0.9, 0.0, 0.06], "outside the workspace"),
+        ([0.5, 0.0503, 0.06], "duplicate"),
+        ([0.45, 0.0, 0.06, 1.0], "3 coordinates"),
+    ]
+    for p, why in cases:
+        ok, reason = est.add_observation(p, None, 1)
+        assert not ok and why in reason
+    ok, reason = est.add_observation([0.45, 0.0, 0.06], None, 7)
+    assert not ok and "label" in reason
+    assert est.n_observations == 1 and est.n_rejected == 5
+    # 2D ignores z; a NaN normal is simply not used
+    assert est.add_observation([0.45, 0.0, 123.0], [np.nan, 0, 0], 1)[0]
+    assert est.add_observation([0.4, 0.1, 0.0], None, 0)[0]  # free space
+    assert est.n_observations == 3
+
+
+def test_map_layout_2d():
+    est = small_2d(**{"candidates.max_count": 20})
+    m = est.map_array()
+    assert m.dtype == VARIANCE_MAP_DTYPE
+    lat = m[m["kind"] == KIND_LATTICE]
+    assert len(lat) == 32 * 32 and (m["kind"][: 32 * 32] == KIND_LATTICE).all()
+    xs, ys = est.lattice_axes
+    np.testing.assert_array_equal(lat["x"], np.repeat(xs, 32))  # C order: x slowest
+    np.testing.assert_array_equal(lat["y"], np.tile(ys, 32))
+    assert (m["z"] == 0.06).all()
+    cand = m[m["kind"] == KIND_CANDIDATE]
+    assert 0 < len(cand) <= 20
+    # prior: circle at the workspace centre; candidates on it with outward unit normals
+    r = np.hypot(cand["x"] - 0.5, cand["y"])
+    np.testing.assert_allclose(r, 0.075, atol=1e-3)
+    nrm = np.stack([cand["normal_x"], cand["normal_y"]], 1)
+    np.testing.assert_allclose((nrm * np.stack([cand["x"] - 0.5, cand["y"]], 1)).sum(1) / r, 1, atol=1e-3)
+    sp = est.surface_points()
+    assert sp.shape[1] == 3 and (sp[:, 2] == 0.06).all()
+
+
+def test_3d_table_prior_candidates_and_inside(tmp_path):
+    est = ShapeEstimator.from_params({"mode": "3d", "lattice.points_per_axis_3d": 20, "candidates.max_count": 50,
+                                      "prior.type": "given", "prior.centre_m": [0.5, 0.0, 0.0],
+                                      "prior.radius_m": 0.06})
+    for n in fibonacci_sphere(10):
+        if n[2] > 0:
+            est.add_observation(np.array([0.5, 0, 0]) + 0.06 * n, n, 1)
+    m = est.map_array()
+    cand = m[m["kind"] == KIND_CANDIDATE]
+    assert len(cand) == 50 and (cand["z"] > 0.005).all()
+    assert len(m) == 20**3 + 50
+    assert not est.inside(np.array([[0.5, 0.0, -0.01]]))[0]
+    assert est.inside(np.array([[0.5, 0.0, 0.01]]))[0]
+    path = est.export_shape(tmp_path / "shape.stl")
+    assert path.stat().st_size > 84
+
+
+def test_reset_returns_to_the_prior_and_export_csv(tmp_path):
+    est = small_2d()
+    prior = est.map_array()
+    est.add_observation([0.5, 0.05, 0.06], [0, 1, 0], 1)
+    assert not np.array_equal(est.map_array()["variance"], prior["variance"])
+    est.export_shape(tmp_path / "c.csv")
+    rows = (tmp_path / "c.csv").read_text().splitlines()
+    assert rows[0] == "x_m,y_m,loop" and len(rows) > 10
+    est.reset()
+    assert est.n_observations == 0
+    np.testing.assert_array_equal(est.map_array(), prior)
+
+
+def test_candidate_variance_and_mean_match_direct_prediction():
+    est = small_2d()
+    for a in np.linspace(0, 2 * np.pi, 6, endpoint=False):
+        n = np.array([np.cos(a), np.sin(a), 0])
+        est.add_observation(np.r_[0.5 + 0.04 * n[0], 0.04 * n[1], 0.06], n, 1)
+    m = est.map_array()
+    cand = m[m["kind"] == KIND_CANDIDATE]
+    mean, var = est.predict(np.stack([cand["x"], cand["y"]], 1))
+    np.testing.assert_allclose(cand["variance"], var)
+    assert np.abs(cand["mean"]).max() < 2e-3  # on the zero level set up to interpolation
+    lat = m[m["kind"] == KIND_LATTICE]
+    mean_l, var_l = est.predict(np.stack([lat["x"], lat["y"]], 1))
+    np.testing.assert_allclose(lat["mean"], mean_l, atol=1e-10)
+    np.testing.assert_allclose(lat["variance"], var_l, atol=1e-10)
