@@ -1,0 +1,177 @@
+"""Node ``tactile_sensor``: the tactile sensor driver.
+
+Reads the serial device (``port``, ``baud``; reconnects with back-off), and
+per frame publishes the raw taxels on /tactile/taxels and, at each contact
+onset, one point on /tactile/contacts (world frame, CONTACT_DTYPE, label 1,
+stamp = frame time) using the fingertip pose interpolated from
+/arm/fingertip_pose. Health on /diagnostics. The work is done by
+:class:`tactile_driver.driver.SensorDriver`; this file only wires it.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Float32MultiArray, MultiArrayDimension
+
+from tactile_common import fields, qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_common.pointcloud import to_pointcloud2
+from tactile_driver.contact import ContactConfig
+from tactile_driver.driver import DriverConfig, SensorDriver
+from tactile_driver.serial_link import SerialLink
+from tactile_driver.taxels import load_layout
+
+PARAMS = {
+    "port": ("/tmp/tactile_sim/sensor", "serial device path of the sensor (a pty symlink in simulation)"),
+    "baud": (921600, "serial baud rate"),
+    "layout_file": ("taxels_ring.yaml", "taxel layout YAML: a path, or a file name in tactile_driver/config"),
+    "world_frame": (topics.WORLD_FRAME, "frame of the published contacts"),
+    "poll_period_s": (0.002, "serial read period (wall clock)"),
+    "reconnect_min_s": (0.1, "first reconnect delay; doubles per failure"),
+    "reconnect_max_s": (2.0, "largest reconnect delay"),
+    "diagnostics_period_s": (1.0, "diagnostics period (wall clock)"),
+    "max_frame_age_s": (0.25, "frames older than this when read are stale: never used"),
+    "pose_tolerance_s": (0.02, "a frame may be this far outside the buffered poses"),
+    "pose_buffer_s": (2.0, "length of the fingertip pose buffer"),
+    "clock_window_s": (2.0, "window of the device-clock offset estimate"),
+    "contact.counts_per_newton": (10000.0, "taxel counts per newton of force"),
+    "contact.on_threshold_n": (0.05, "contact on at this force"),
+    "contact.off_threshold_n": (0.025, "contact off below this force"),
+    "contact.noise_gate_sigma": (4.0, "a taxel is active above this many noise std"),
+    "contact.min_noise_counts": (1.0, "floor of a taxel's noise std"),
+    "contact.min_active_taxels": (2, "active taxels needed for a contact"),
+    "contact.calibration_frames": (40, "frames of the start-up baseline (no contact!)"),
+    "contact.stuck_frames": (40, "identical values for this many frames: a stuck taxel"),
+}
+
+
+def resolve_config_file(name: str) -> str:
+    """A path as given, or a file name looked up in tactile_driver's share/config."""
+    if os.path.isabs(name) or os.path.exists(name):
+        return name
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+    try:
+        return os.path.join(get_package_share_directory("tactile_driver"), "config", name)
+    except (PackageNotFoundError, ValueError, LookupError) as exc:
+        raise ValueError(f"cannot find config file '{name}': {exc}") from None
+
+
+def _stamp(t_s: float) -> Time:
+    ns = int(round(t_s * 1e9))
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+class TactileSensorNode(Node):
+    def __init__(self) -> None:
+        super().__init__("tactile_sensor")
+        p = declare_parameters(self, PARAMS)
+        layout = load_layout(resolve_config_file(p.layout_file))
+        contact = ContactConfig(
+            counts_per_newton=p.contact_counts_per_newton, on_threshold_n=p.contact_on_threshold_n,
+            off_threshold_n=p.contact_off_threshold_n, noise_gate_sigma=p.contact_noise_gate_sigma,
+            min_noise_counts=p.contact_min_noise_counts, min_active_taxels=p.contact_min_active_taxels,
+            calibration_frames=p.contact_calibration_frames, stuck_frames=p.contact_stuck_frames,
+        )
+        self.driver = SensorDriver(layout, contact, DriverConfig(
+            max_frame_age_s=p.max_frame_age_s, pose_tolerance_s=p.pose_tolerance_s,
+            pose_buffer_s=p.pose_buffer_s, clock_window_s=p.clock_window_s))
+        self.link = SerialLink(p.port, p.baud, p.reconnect_min_s, p.reconnect_max_s)
+        self.world_frame = p.world_frame
+        self._connects_seen = 0
+        self._rate_frames, self._rate_t = 0, time.monotonic()
+        self._last_counts: dict = {}
+        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
+        self._pub_taxels = self.create_publisher(Float32MultiArray, topics.TAXELS, qos.SENSOR)
+        self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
+        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)  # serial I/O runs in wall time
+        self.create_timer(p.poll_period_s, self._poll, clock=steady)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics, clock=steady)
+        self._invalid_poses = 0
+        self.get_logger().info(f"tactile_sensor: {layout.n_taxels} taxels ({layout.name}), device {p.port}")
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        pp, q = msg.pose.position, msg.pose.orientation
+        if not self.driver.add_pose(t, [pp.x, pp.y, pp.z], [q.x, q.y, q.z, q.w]):
+            self._invalid_poses += 1
+            self.get_logger().warn("ignored a fingertip pose (out of order or not finite)", throttle_duration_sec=5.0)
+
+    def _poll(self) -> None:
+        data = self.link.poll(time.monotonic())
+        if self.link.connects != self._connects_seen:  # (re)connected: a fresh stream
+            self._connects_seen = self.link.connects
+            self.driver.device_reset()
+            self.get_logger().info(f"sensor device {self.link.port} connected ({self.link.reconnects} reconnects)")
+        if not data:
+            return
+        now_s = self.get_clock().now().nanoseconds * 1e-9
+        out = self.driver.feed(data, now_s)
+        for stamp_s, values in out.frames:
+            msg = Float32MultiArray(data=values.astype(np.float32).tolist())
+            msg.layout.dim = [MultiArrayDimension(label="taxel", size=values.size, stride=values.size)]
+            self._pub_taxels.publish(msg)
+        self._rate_frames += len(out.frames)
+        for c in out.contacts:
+            point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+            point["x"], point["y"], point["z"] = c.point_xyz
+            point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
+            point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
+            self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, _stamp(c.stamp_s)))
+            self.get_logger().info(
+                f"contact at {np.round(c.point_xyz, 4).tolist()} normal {np.round(c.normal_xyz, 3).tolist()} "
+                f"force {c.force_n:.3f} N")
+
+    def _publish_diagnostics(self) -> None:
+        now = time.monotonic()
+        rate_hz = self._rate_frames / max(now - self._rate_t, 1e-9)
+        self._rate_frames, self._rate_t = 0, now
+        d, s, det = self.driver.decoder.stats, self.driver.stats, self.driver.detector
+        counts = {
+            "frames": s.frames, "crc_errors": d.crc_errors, "bad_lengths": d.bad_lengths, "gaps": d.gaps,
+            "lost_frames": d.lost_frames, "resyncs": d.resyncs, "garbage_bytes": d.garbage_bytes,
+            "stale_frames": s.stale_frames, "wrong_size_frames": s.wrong_size_frames,
+            "reconnects": self.link.reconnects, "disconnects": self.link.disconnects,
+            "failed_connects": self.link.failed_attempts, "contacts": s.contacts,
+            "refused_no_pose": s.refused_no_pose, "invalid_poses": self._invalid_poses,
+            "stuck_taxels": int(det.stuck.sum()), "dead_taxels": int(det.dead.sum()),
+        }
+        faults = ("crc_errors", "bad_lengths", "gaps", "resyncs", "stale_frames", "wrong_size_frames",
+                  "disconnects", "refused_no_pose", "stuck_taxels", "dead_taxels")
+        new_faults = [k for k in faults if counts[k] != self._last_counts.get(k, 0)]
+        self._last_counts = counts
+        if not self.link.connected:
+            level, message = DiagnosticStatus.ERROR, f"device not connected: {self.link.last_error}"
+        elif not det.calibrated:
+            level, message = DiagnosticStatus.WARN, "calibrating baseline"
+        elif new_faults:
+            level, message = DiagnosticStatus.WARN, "faults: " + ", ".join(new_faults)
+        else:
+            level, message = DiagnosticStatus.OK, "streaming"
+        values = [KeyValue(key="connected", value=str(self.link.connected).lower()),
+                  KeyValue(key="calibrated", value=str(det.calibrated).lower()),
+                  KeyValue(key="frame_rate_hz", value=f"{rate_hz:.1f}")]
+        values += [KeyValue(key=k, value=str(v)) for k, v in counts.items()]
+        status = DiagnosticStatus(level=level, name="tactile_sensor: device", message=message,
+                                  hardware_id=self.link.port, values=values)
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._pub_diag.publish(msg)
+
+    def close(self) -> None:
+        self.link.close()
+
+
+def main(args=None) -> int:
+    return run_node(TactileSensorNode, args)

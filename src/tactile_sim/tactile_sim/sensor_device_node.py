@@ -1,0 +1,87 @@
+"""Node ``sim_sensor_device``: the simulated tactile sensor alone (no arm), for tests and bench setups.
+
+Holds a hidden object (``tactile_sim.objects.make_object``), follows the
+fingertip pose on /arm/fingertip_pose, and steps a
+:class:`tactile_sim.sensor_device.SimulatedSensorDevice` on a timer of the
+node clock (simulated time with ``use_sim_time``), so the driver node reads
+frames from the pty behind ``link_path``.
+"""
+
+from __future__ import annotations
+
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+
+from tactile_common import qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_driver.pose_buffer import quat_to_matrix
+from tactile_driver.sensor_node import resolve_config_file
+from tactile_driver.taxels import load_layout
+from tactile_sim.objects import make_object
+from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
+from tactile_sim.sensor_model import SensorModelConfig
+
+PARAMS = {
+    "link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
+    "layout_file": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
+    "frame_rate_hz": (200.0, "frame rate in node-clock time"),
+    "step_period_s": (0.005, "timer period that writes the due frames (node clock)"),
+    "seed": (0, "seed of the noise, baselines and faults"),
+    "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
+    "mode": ("2d", "2d (prism contour) or 3d"),
+    "object_xy_m": ([0.50, 0.0], "object centre on the table (world)"),
+    "object_yaw_rad": (0.0, "object yaw"),
+    "object_scale": (1.0, "object scale"),
+    "prism_height_m": (0.12, "prism height in 2D mode"),
+    "model.stiffness_pa_per_m": (2.0e7, "skin pressure per metre of penetration"),
+    "model.spread_m": (0.0025, "std of the skin's spatial spread"),
+    "model.counts_per_newton": (10000.0, "counts per newton (the driver's calibration)"),
+    "model.noise_counts": (2.0, "std of the taxel noise"),
+    "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
+    "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
+    "fault.drop_prob": (0.0, "per frame: frame not sent"),
+    "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
+    "fault.stuck_value": (4000, "value of the stuck taxel"),
+    "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
+    "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
+    "fault.disconnect_for_s": (1.0, "disconnect length"),
+}
+
+
+class SimSensorDeviceNode(Node):
+    def __init__(self) -> None:
+        super().__init__("sim_sensor_device")
+        p = declare_parameters(self, PARAMS)
+        obj = make_object(p.object, p.mode, tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
+        default = "taxels_ring.yaml" if p.mode == "2d" else "taxels_hemisphere.yaml"
+        layout = load_layout(resolve_config_file(p.layout_file or default))
+        faults = FaultConfig(
+            garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob, drop_prob=p.fault_drop_prob,
+            stuck_taxel=p.fault_stuck_taxel, stuck_value=p.fault_stuck_value, stuck_after_s=p.fault_stuck_after_s,
+            disconnect_at_s=p.fault_disconnect_at_s, disconnect_for_s=p.fault_disconnect_for_s)
+        model = SensorModelConfig(stiffness_pa_per_m=p.model_stiffness_pa_per_m, spread_m=p.model_spread_m,
+                                  counts_per_newton=p.model_counts_per_newton, noise_counts=p.model_noise_counts)
+        self.device = SimulatedSensorDevice(obj, layout, p.link_path, p.frame_rate_hz, p.seed, faults, model)
+        self.device.open()
+        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)
+        self.create_timer(p.step_period_s, self._step)
+        self.get_logger().info(f"sim_sensor_device: object '{p.object}' ({p.mode}), {layout.n_taxels} taxels "
+                               f"at {p.frame_rate_hz:g} Hz on {p.link_path}")
+
+    def _on_pose(self, msg: PoseStamped) -> None:
+        pp, q = msg.pose.position, msg.pose.orientation
+        try:
+            self.device.set_pose([pp.x, pp.y, pp.z], quat_to_matrix([q.x, q.y, q.z, q.w]))
+        except (ValueError, ZeroDivisionError, FloatingPointError) as exc:
+            self.get_logger().warn(f"ignored fingertip pose: {exc}", throttle_duration_sec=5.0)
+
+    def _step(self) -> None:
+        self.device.step(self.get_clock().now().nanoseconds * 1e-9)
+
+    def close(self) -> None:
+        self.device.close()
+
+
+def main(args=None) -> int:
+    return run_node(SimSensorDeviceNode, args)
