@@ -23,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "arm_commander = tactile_driver.commander_node:main",
+            "tactile_sensor = tactile_driver.sensor_node:main",
         ],
     },
 )

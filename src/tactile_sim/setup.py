@@ -23,6 +23,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_rig = tactile_sim.rig_node:main",
+            "sim_sensor_device = tactile_sim.sensor_device_node:main",
         ],
     },
 )
