@@ -106,11 +106,13 @@ class SimRig(Node):
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         times = np.array([pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points])
-        positions = np.array([list(pt.positions) for pt in msg.points], dtype=float).reshape(len(times), -1)
-        has_vel = len(msg.points) > 0 and all(len(pt.velocities) for pt in msg.points)
-        velocities = np.array([list(pt.velocities) for pt in msg.points], dtype=float) if has_vel else None
         start_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         try:
+            # A ragged message (points of different sizes) makes numpy raise ValueError.
+            positions = (np.array([list(pt.positions) for pt in msg.points], dtype=float) if len(times)
+                         else np.zeros((0, len(msg.joint_names))))
+            has_vel = len(msg.points) > 0 and all(len(pt.velocities) for pt in msg.points)
+            velocities = np.array([list(pt.velocities) for pt in msg.points], dtype=float) if has_vel else None
             self.controller.command(self.t_s, msg.joint_names, times, positions, velocities, start_s)
         except (TrajectoryRejected, ValueError) as exc:
             self.get_logger().error(f"trajectory rejected ({self.controller.rejected} so far): {exc}")
