@@ -158,7 +158,7 @@ def test_sigkill_keeps_completed_chunks(ros_graph, tmp_path):
 
 
 def test_sim_time_log_times_and_exclude(ros_graph, tmp_path):
-    """With use_sim_time, log_time is the /clock time; excluded topics are not recorded."""
+    """With use_sim_time, log_time is the /clock time; excluded topics are not recorded; SIGTERM finalises."""
     from rosgraph_msgs.msg import Clock
 
     path = tmp_path / "sim.mcap"
@@ -187,7 +187,9 @@ def test_sim_time_log_times_and_exclude(ros_graph, tmp_path):
     node.create_timer(0.02, tick)
     ros_graph.wait_for(lambda: sim["notes"] == 10 and sim["ticks"] >= sim["notes_from"] + 20, 30, "ten notes")
     last_clock_ns = t0_ns + sim["ticks"] * tick_ns
-    assert ros_graph.procs["recorder"].stop() == 0
+    recorder = ros_graph.procs["recorder"]
+    os.killpg(recorder.popen.pid, signal.SIGTERM)  # SIGTERM finalises the file too
+    assert recorder.popen.wait(20) == 0, recorder.log()
     with Reader(path) as reader:
         names = {c.topic for c in reader.connections}
         notes = [(t, decode(d, "std_msgs/msg/String").data) for c, t, d in reader.messages() if c.topic == "/note"]
