@@ -31,6 +31,9 @@ def test_full_definition_parses_to_rosbags_types(type_name):
     assert type_name in parsed
     for name, fields in parsed.items():
         assert fields == TYPESTORE.fielddefs[name], name
+    # rosbags' own definition text (field order, no comments) describes the same types
+    theirs = get_types_from_msg(TYPESTORE.generate_msgdef(type_name, ros_version=2)[0], type_name)
+    assert parsed == theirs
 
 
 def test_full_definition_layout_pose_stamped():
