@@ -26,6 +26,7 @@ setup(
             "player = tactile_bringup.player_node:main",
             "tactile-explore-offline = tactile_bringup.explore_offline:main",
             "tactile-benchmark = tactile_bringup.benchmark:main",
+            "explorer = tactile_bringup.explorer_node:main",
         ],
     },
 )

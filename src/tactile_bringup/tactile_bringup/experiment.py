@@ -60,14 +60,31 @@ class Experiment:
 
     def __post_init__(self) -> None:
         self.params_files = default_params_files(self.mode) + [Path(p) for p in self.user_params_files]
+        self.overrides = self._overrides()
+        self._resolve()
+
+    @classmethod
+    def from_files(cls, mode: str, params_files: Sequence[str]) -> "Experiment":
+        """The experiment a graph node was started with: exactly these files
+        (they already include the overrides that ``write_overrides`` wrote)."""
+        exp = cls.__new__(cls)
+        exp.mode, exp.seed, exp.user_params_files = mode, 0, []
+        exp.object_name = exp.strategy = exp.alpha = exp.touches = None
+        exp.params_files = [Path(p) for p in params_files]
+        exp.overrides = {}
+        exp._resolve()
+        exp.seed = int(exp.node_params("soc_planner").get("seed", 0))
+        return exp
+
+    def _resolve(self) -> None:
+        """Read the choices back from the parameters (one source of truth)."""
         for path in self.params_files:
             if not Path(path).exists():
                 raise ValueError(f"{path}: no such parameter file")
-        self.overrides = self._overrides()
         explorer = self.node_params("explorer")
-        self.object_name = self.overrides["sim_rig"]["object"] = (
-            self.object_name or self.node_params("sim_rig").get("object", "ellipse")
-        )
+        self.object_name = self.object_name or str(self.node_params("sim_rig").get("object", "ellipse"))
+        if self.overrides:
+            self.overrides["sim_rig"]["object"] = self.object_name
         self.strategy = self.node_params("soc_planner").get("strategy", "proposed")
         self.alpha = self.node_params("soc_planner").get("alpha")
         self.touches = int(explorer.get("touches", 20))
@@ -81,7 +98,7 @@ class Experiment:
         """The command-line choices as per-node parameters."""
         o: dict[str, dict[str, Any]] = {"/**": {"mode": self.mode}}
         o["soc_planner"] = {"seed": int(self.seed)}
-        o["sim_rig"] = {"seed": int(self.seed)}
+        o["sim_rig"] = {"sensor_seed": int(self.seed)}
         if self.strategy is not None:
             o["soc_planner"]["strategy"] = self.strategy
         if self.alpha is not None:

@@ -38,8 +38,10 @@ def first_reaching(touches: Sequence[dict], level: float, key: str) -> Optional[
     return None
 
 
-def auc_travel(touches: Sequence[dict], prior_iou: float) -> float:
-    """∫ (1 − IoU) d(travel) over the run, IoU a step function of travel."""
+def auc_travel(touches: Sequence[dict], prior_iou: Optional[float]) -> Optional[float]:
+    """∫ (1 − IoU) d(travel) over the run, IoU a step function of travel (None without IoU)."""
+    if prior_iou is None or any(t["iou"] is None for t in touches):
+        return None
     area, iou, travel = 0.0, prior_iou, 0.0
     for t in touches:
         area += (1.0 - iou) * (t["travel_m"] - travel)
@@ -47,7 +49,7 @@ def auc_travel(touches: Sequence[dict], prior_iou: float) -> float:
     return float(area)
 
 
-def summarise(touches: Sequence[dict], prior_iou: float, stopped_because: str) -> dict:
+def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_because: str) -> dict:
     summary: dict[str, Any] = {
         "final_iou": touches[-1]["iou"] if touches else prior_iou,
         "auc_travel": auc_travel(touches, prior_iou),

@@ -51,10 +51,10 @@ class SimulatedFinger:
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
         sensor, sim, planner = experiment.sensor_params, experiment.sim_params, experiment.planner_params
         layout = layout_for(experiment.mode, sensor)
-        model = SensorModel(layout, _dataclass_from(SensorModelConfig, sim, "sensor."),
-                            seed=int(sim.get("seed", experiment.seed)))
+        model = SensorModel(layout, _dataclass_from(SensorModelConfig, sim, "sensor_model."),
+                            seed=int(sim.get("sensor_seed", experiment.seed)))
         detector = ContactDetector(layout, _dataclass_from(ContactConfig, sensor))
-        frame_rate_hz = float(sim.get("sensor.frame_rate_hz", 200.0))
+        frame_rate_hz = float(sim.get("sensor_frame_rate_hz", 200.0))
         step_m = float(planner.get("approach_speed_mps", 0.02)) / frame_rate_hz
         max_travel_m = (float(planner.get("standoff_m", 0.01)) + float(planner.get("max_depth_m", 0.02)))
         return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed))

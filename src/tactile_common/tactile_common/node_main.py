@@ -25,7 +25,8 @@ def run_node(
     A node whose constructor raises ``ValueError`` (bad parameters, a missing
     file) logs the message and exits with status 2, without a traceback.
     If the node has a ``close()`` method it is called before the node is
-    destroyed, whatever ended the spin.
+    destroyed, whatever ended the spin. A node that sets ``done = True``
+    ends the spin itself (exit status 0, or the node's ``exit_status``).
 
     Returns:
         the process exit status.
@@ -41,11 +42,14 @@ def run_node(
             return 2
         ex = executor() if executor is not None else SingleThreadedExecutor()
         ex.add_node(node)
-        ex.spin()
+        # A node that finishes its job by itself (e.g. the explorer) sets ``done``.
+        while rclpy.ok() and not getattr(node, "done", False):
+            ex.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         if node is not None:
+            status = int(getattr(node, "exit_status", status))
             close = getattr(node, "close", None)
             if callable(close):
                 close()

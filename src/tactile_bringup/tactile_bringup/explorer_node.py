@@ -1,0 +1,198 @@
+"""Node ``explorer``: sequences touches over topics, measures progress, writes the report.
+
+In:  /arm/fingertip_pose (waits for the tip at the start position),
+     /planner/goal (the target of each decision), /planner/status (decision
+     time, or why no goal), /tactile/contacts (the touch's observation),
+     /arm/touch_done (end of a touch).
+Out: /planner/request (std_msgs/Header: plan on a map at least this new).
+
+It keeps a replica of the estimate (the estimator's own core, fed the same
+observations with the same parameters) to compute IoU and surface error
+against the simulated object, and writes ``report.json`` (the offline
+loop's schema), ``progress.png`` and the estimated shape into ``out_dir``.
+On the real rig (``evaluate: false``) it records the same without ground
+truth. It sets ``done`` when the run ends, and on Ctrl-C still writes the
+report so far.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from rclpy.node import Node
+from sensor_msgs.msg import PointCloud2
+from std_msgs.msg import Header
+
+from tactile_common import fields, qos, topics
+from tactile_common.node_main import run_node
+from tactile_common.params import declare_parameters
+from tactile_common.pointcloud import PointCloudError, from_pointcloud2
+
+from .experiment import Experiment
+from .progress import RunRecorder
+
+REQUEST = "/planner/request"
+PLANNER_STATUS = "/planner/status"
+
+PARAMS = {
+    "mode": ("2d", "'2d' or '3d'"),
+    "params_files": ([""], "the parameter files every node got (defaults, mode, user, overrides)"),
+    "out_dir": ("runs/latest", "where report.json, progress.png and the shape go"),
+    "evaluate": (True, "simulation: measure IoU and surface error against the object"),
+    "start_tolerance_m": (0.003, "the tip counts as at the start position within this distance"),
+    "start_timeout_s": (120.0, "give up if the tip does not reach the start position (wall clock)"),
+    "touch_timeout_s": (120.0, "give up if a touch does not end (wall clock)"),
+    "max_unreachable": (10, "stop after this many unreachable goals in a row"),
+}
+
+
+def _ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+class ExplorerNode(Node):
+    def __init__(self) -> None:
+        super().__init__("explorer")
+        p = declare_parameters(self, PARAMS)
+        files = [f for f in p.params_files if f]
+        if not files:
+            raise ValueError("explorer: parameter 'params_files' is empty (start it through scripts/explore.sh)")
+        # The files already hold the overrides (object, strategy, seed, touches).
+        self.exp = Experiment.from_files(p.mode, files)
+        self.p = p
+        self.run = RunRecorder(self.exp, Path(p.out_dir), evaluate=p.evaluate)
+        self.done = False
+        self.exit_status = 0
+        self.state = "waiting_for_start"
+        self.t_state = time.monotonic()
+        self.last_obs_stamp_ns = 0
+        self.unreachable_in_row = 0
+        self.goals: dict[int, PoseStamped] = {}
+        self.observations: dict[int, np.ndarray] = {}
+        self.decision_ms: dict[int, float] = {}
+        self.pending_done: Optional[DiagnosticStatus] = None
+        self.pub_request = self.create_publisher(Header, REQUEST, qos.EVENTS)
+        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self.on_tip, qos.SENSOR)
+        self.create_subscription(PoseStamped, topics.GOAL, self.on_goal, qos.EVENTS)
+        self.create_subscription(DiagnosticStatus, PLANNER_STATUS, self.on_planner_status, qos.EVENTS)
+        self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.EVENTS)
+        self.create_subscription(DiagnosticStatus, topics.TOUCH_DONE, self.on_touch_done, qos.EVENTS)
+        self.create_timer(0.2, self.on_timer)
+        self.get_logger().info(
+            f"exploring '{self.exp.object_name}' ({self.exp.mode}) with '{self.exp.strategy}', "
+            f"seed {self.exp.seed}, {self.exp.touches} touches; output in {p.out_dir}")
+
+    # -- inputs ----------------------------------------------------------------
+    def on_tip(self, msg: PoseStamped) -> None:
+        if self.state != "waiting_for_start":
+            return
+        tip = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
+        if np.linalg.norm(tip - self.exp.start_tip_xyz) <= self.p.start_tolerance_m:
+            self.get_logger().info("tip at the start position: first decision")
+            self.request(0)
+
+    def on_goal(self, msg: PoseStamped) -> None:
+        self.goals[_ns(msg.header.stamp)] = msg
+
+    def on_planner_status(self, msg: DiagnosticStatus) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        stamp_ns = int(values.get("stamp_ns", "0") or 0)
+        if "decision_ms" in values:
+            self.decision_ms[stamp_ns] = float(values["decision_ms"])
+        if msg.message != "ok" and self.state == "touching":
+            self.finish(f"planner: {msg.message}: {values.get('detail', '')}")
+
+    def on_contacts(self, msg: PointCloud2) -> None:
+        try:
+            points = from_pointcloud2(msg)
+        except PointCloudError as exc:
+            self.get_logger().warn(f"unreadable contact cloud: {exc}")
+            return
+        if len(points):
+            self.observations[_ns(msg.header.stamp)] = points[0]
+
+    def on_touch_done(self, msg: DiagnosticStatus) -> None:
+        if self.state != "touching":
+            return
+        self.pending_done = msg
+        self.try_complete_touch()
+
+    # -- the cycle ---------------------------------------------------------------
+    def request(self, stamp_ns: int) -> None:
+        self.state = "touching"
+        self.t_state = time.monotonic()
+        header = Header(frame_id=topics.WORLD_FRAME)
+        header.stamp.sec, header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        self.pub_request.publish(header)
+
+    def try_complete_touch(self) -> None:
+        msg = self.pending_done
+        values = {kv.key: kv.value for kv in msg.values}
+        outcome = msg.message
+        if outcome == "unreachable":
+            self.pending_done = None
+            self.unreachable_in_row += 1
+            self.get_logger().warn(f"goal unreachable ({self.unreachable_in_row} in a row): re-planning")
+            if self.unreachable_in_row >= self.p.max_unreachable:
+                self.finish(f"{self.unreachable_in_row} unreachable goals in a row")
+            else:
+                self.run.add_travel(float(values.get("travel_m", 0) or 0), float(values.get("duration_s", 0) or 0))
+                self.request(self.last_obs_stamp_ns)
+            return
+        if outcome not in ("contact", "free_space"):
+            self.finish(f"touch {outcome}: {values}")
+            self.exit_status = 1
+            return
+        obs_ns = int(values.get("observation_stamp_ns") or 0)
+        if obs_ns not in self.observations:
+            return  # the observation is still on its way: on_timer retries
+        self.pending_done = None
+        self.unreachable_in_row = 0
+        goal_ns = int(values.get("goal_stamp_ns") or 0)
+        record = self.run.add_touch(
+            goal=self.goals.get(goal_ns), observation=self.observations.pop(obs_ns),
+            travel_m=float(values.get("travel_m", 0) or 0), time_s=float(values.get("duration_s", 0) or 0),
+            decision_ms=self.decision_ms.get(goal_ns, float("nan")),
+        )
+        self.get_logger().info(self.run.progress_line(record))
+        self.last_obs_stamp_ns = obs_ns
+        reason = self.run.stop_reason()
+        if reason:
+            self.finish(reason)
+        else:
+            self.request(obs_ns)
+
+    def on_timer(self) -> None:
+        if self.done:
+            return
+        if self.pending_done is not None:
+            self.try_complete_touch()
+        waited = time.monotonic() - self.t_state
+        if self.state == "waiting_for_start" and waited > self.p.start_timeout_s:
+            self.finish("the fingertip never reached the start position (is the arm commander running?)")
+            self.exit_status = 1
+        elif self.state == "touching" and waited > self.p.touch_timeout_s:
+            self.finish(f"no touch ended within {self.p.touch_timeout_s:.0f} s")
+            self.exit_status = 1
+
+    def finish(self, reason: str) -> None:
+        if self.done:
+            return
+        self.state = "finished"
+        paths = self.run.write(reason)
+        self.get_logger().info(f"finished ({reason}): {self.run.summary_line()}; wrote {', '.join(paths)}")
+        self.done = True
+
+    def close(self) -> None:
+        """Ctrl-C: keep what was measured."""
+        if not self.done:
+            self.run.write("interrupted")
+
+
+def main(args=None) -> int:
+    return run_node(ExplorerNode, args)

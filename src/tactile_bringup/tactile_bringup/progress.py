@@ -1,0 +1,146 @@
+"""Touch records and run outputs, shared by the offline loop and the explorer node.
+
+A touch record is one entry of the report's ``touches`` list
+(:mod:`tactile_bringup.report`); the outputs of a run are ``report.json``,
+``progress.png`` and the estimated shape (``shape.csv`` in 2D,
+``shape.ply`` in 3D).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from tactile_common.fields import LABEL_CONTACT, LABEL_FREE_SPACE
+
+from . import plots
+from .evaluation import Evaluator
+from .report import check_report, make_report, write_report
+
+
+def _round(v: Sequence[float]) -> list:
+    return [round(float(x), 7) for x in np.asarray(v).ravel()]
+
+
+def observe(estimator, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], contact: bool) -> None:
+    """Feed one touch's observation to an estimator (contact or free-space point)."""
+    estimator.add_observation(np.asarray(point_xyz, dtype=float),
+                              None if not contact else np.asarray(normal_xyz, dtype=float),
+                              LABEL_CONTACT if contact else LABEL_FREE_SPACE)
+
+
+def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
+                 time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator]) -> dict:
+    """The report entry of one touch, with metrics of the estimate after it."""
+    cand = estimator.map_array()
+    cand = cand[cand["kind"] == 1]
+    return {
+        "index": index,
+        "target": _round(target_xyz),
+        "contact": _round(point_xyz) if contact else None,
+        "normal": _round(normal_xyz) if contact else None,
+        "outcome": "contact" if contact else "free_space",
+        "travel_m": float(travel_m),
+        "time_s": float(time_s),
+        "iou": evaluator.iou(estimator) if evaluator else None,
+        "surface_error_m": evaluator.surface_error_m(estimator) if evaluator else None,
+        "decision_ms": float(decision_ms),
+        "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,
+    }
+
+
+def stop_reason(experiment, touches: list) -> Optional[str]:
+    """Why the run stops after these touches (None: go on)."""
+    if len(touches) >= experiment.touches:
+        return "touch budget"
+    last = touches[-1] if touches else None
+    if last and experiment.max_travel_m and last["travel_m"] >= experiment.max_travel_m:
+        return "travel budget"
+    if last and experiment.confidence_max_var_m2 and last["max_surface_var_m2"] is not None \
+            and last["max_surface_var_m2"] < experiment.confidence_max_var_m2:
+        return "confidence"
+    return None
+
+
+def write_outputs(report: dict, estimator, evaluator: Optional[Evaluator], out_dir: Path,
+                  mode: str) -> list[str]:
+    """report.json, progress.png and shape.csv|ply into ``out_dir``; the paths written."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    check_report(report)
+    written = []
+    write_report(report, out_dir / "report.json")
+    written.append(str(out_dir / "report.json"))
+    surface = estimator.surface_points()
+    if len(surface):
+        shape = out_dir / ("shape.csv" if mode == "2d" else "shape.ply")
+        estimator.export_shape(shape)
+        written.append(str(shape))
+    plots.plot_progress(report, out_dir / "progress.png", surface,
+                        evaluator.true_surface if evaluator else None)
+    written.append(str(out_dir / "progress.png"))
+    return written
+
+
+class RunRecorder:
+    """The explorer node's bookkeeping: a replica estimate, touch records, outputs."""
+
+    def __init__(self, experiment, out_dir: Path, evaluate: bool = True) -> None:
+        from .loop import make_estimator
+
+        self.exp = experiment
+        self.out_dir = Path(out_dir)
+        self.estimator = make_estimator(experiment)
+        self.evaluator = Evaluator(experiment) if evaluate else None
+        self.prior_iou = self.evaluator.iou(self.estimator) if self.evaluator else None
+        self.touches: list[dict] = []
+        self.travel_m = 0.0
+        self.time_s = 0.0
+        self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01)) + \
+            float(experiment.planner_params.get("tip_radius_m", 0.01))
+
+    def add_travel(self, travel_m: float, time_s: float) -> None:
+        """Motion that produced no observation (an aborted or unreachable goal)."""
+        self.travel_m += travel_m
+        self.time_s += time_s
+
+    def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float) -> dict:
+        """Record a finished touch: its goal pose message and its observation point."""
+        self.add_travel(travel_m, time_s)
+        contact = int(observation["label"]) == LABEL_CONTACT
+        point = np.array([observation["x"], observation["y"], observation["z"]], dtype=float)
+        normal = np.array([observation["normal_x"], observation["normal_y"], observation["normal_z"]])
+        target = np.full(3, np.nan)
+        if goal is not None:  # target = pre-touch point + standoff along the approach (x-axis)
+            from .poses import pose_x_axis
+
+            p = goal.pose.position
+            target = np.array([p.x, p.y, p.z]) + self.standoff_m * pose_x_axis(goal.pose.orientation)
+        observe(self.estimator, point, normal, contact)
+        record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
+                              decision_ms, self.estimator, self.evaluator)
+        self.touches.append(record)
+        return record
+
+    def stop_reason(self) -> Optional[str]:
+        return stop_reason(self.exp, self.touches)
+
+    def report(self, stopped_because: str) -> dict:
+        return make_report(self.exp.object_name, self.exp.mode, self.exp.strategy, self.exp.seed,
+                           self.exp.config_summary(), self.touches, self.prior_iou, stopped_because)
+
+    def write(self, stopped_because: str) -> list[str]:
+        return write_outputs(self.report(stopped_because), self.estimator, self.evaluator, self.out_dir,
+                             self.exp.mode)
+
+    def progress_line(self, record: dict) -> str:
+        from .cli_common import progress_line
+
+        return progress_line(record, self.exp.touches)
+
+    def summary_line(self) -> str:
+        s = self.report("").get("summary")
+        iou = "n/a" if s["final_iou"] is None else f"{s['final_iou']:.3f}"
+        return f"{s['touches']} touches, travel {s['travel_m']:.2f} m, time {s['time_s']:.0f} s, final IoU {iou}"
