@@ -103,7 +103,7 @@ class Experiment:
             o["soc_planner"]["strategy"] = self.strategy
         if self.alpha is not None:
             o["soc_planner"]["alpha"] = float(self.alpha)
-        o["explorer"] = {"seed": int(self.seed)}
+        o["explorer"] = {}
         if self.touches is not None:
             o["explorer"]["touches"] = int(self.touches)
         return o

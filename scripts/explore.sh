@@ -1,0 +1,151 @@
+#!/usr/bin/env bash
+# The main job: set up, start the node graph, explore an object, record to MCAP.
+#
+#   scripts/explore.sh [--object NAME|FILE] [--mode 2d|3d] [--strategy NAME] [--alpha A]
+#                      [--touches N] [--seed S] [--out DIR] [--real-time-factor X]
+#                      [--rig sim|hardware] [--sensor-port DEV] [--params FILE]... [--yes]
+#
+# Leaves in runs/<timestamp>/ (or --out): run.mcap, report.json, progress.png,
+# shape.csv (2D) or shape.ply (3D), params/ (every parameter file the nodes got)
+# and logs/ (one per node). Ctrl-C stops every node, finalises the MCAP and
+# still writes the report so far.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+
+usage() { sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+
+mode=2d object="" strategy="" alpha="" touches="" seed=0 out="" rtf=4.0 rig=sim
+sensor_port="/dev/ttyUSB0" yes=0 user_params=()
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --object) object="$2"; shift 2 ;;
+    --mode) mode="$2"; shift 2 ;;
+    --strategy) strategy="$2"; shift 2 ;;
+    --alpha) alpha="$2"; shift 2 ;;
+    --touches) touches="$2"; shift 2 ;;
+    --seed) seed="$2"; shift 2 ;;
+    --out) out="$2"; shift 2 ;;
+    --real-time-factor) rtf="$2"; shift 2 ;;
+    --rig) rig="$2"; shift 2 ;;
+    --sensor-port) sensor_port="$2"; shift 2 ;;
+    --params) user_params+=("$(realpath -m "$2")"); shift 2 ;;
+    --yes|-y) yes=1; shift ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "explore.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
+  esac
+done
+case "$rig" in sim|hardware) ;; *) echo "explore.sh: --rig must be sim or hardware" >&2; exit 2 ;; esac
+
+"$ROOT/scripts/setup.sh"
+# shellcheck disable=SC1091
+source "${TACTILE_VENV:-$ROOT/.venv}/tactile.env"
+# Discovery stays on this host unless the user chose a range (a multi-machine rig).
+export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+
+run_dir="$(realpath -m "${out:-$ROOT/runs/$(date +%Y%m%d-%H%M%S)}")"
+if [ -e "$run_dir/run.mcap" ]; then
+  echo "explore.sh: $run_dir already holds a run; choose another --out" >&2; exit 2
+fi
+mkdir -p "$run_dir/logs"
+
+# Resolve and validate the experiment; the same files go to every node.
+plan_args=(--mode "$mode" --seed "$seed" --rig "$rig" --out "$run_dir")
+[ -n "$object" ] && plan_args+=(--object "$object")
+[ -n "$strategy" ] && plan_args+=(--strategy "$strategy")
+[ -n "$alpha" ] && plan_args+=(--alpha "$alpha")
+[ -n "$touches" ] && plan_args+=(--touches "$touches")
+for f in "${user_params[@]}"; do plan_args+=(--params "$f"); done
+mapfile -t files < <(python -m tactile_bringup.launch_plan plan "${plan_args[@]}") || exit 2
+[ "${#files[@]}" -gt 0 ] || exit 2
+params_args=()
+for f in "${files[@]}"; do params_args+=(--params-file "$f"); done
+files_list="[$(IFS=,; echo "${files[*]}")]"
+
+sim_time=false
+sensor_link="$sensor_port"
+if [ "$rig" = sim ]; then
+  sim_time=true
+  sensor_link="$run_dir/sensor.pty"
+fi
+
+names=() pids=()
+start() {  # start NAME EXECUTABLE [ros args...]: a node in the background, logging to logs/NAME.log
+  local name="$1" exe="$2"; shift 2
+  "$exe" --ros-args -r __node:="$name" -p use_sim_time:=$sim_time "${params_args[@]}" "$@" \
+      > "$run_dir/logs/$name.log" 2>&1 &
+  names+=("$name"); pids+=($!)
+}
+
+stopping=0
+stop_all() {  # SIGINT to every node (explorer first, recorder last), then wait; escalate if needed
+  [ "$stopping" = 1 ] && return; stopping=1
+  local i pid
+  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do kill -INT "${pids[$i]}" 2>/dev/null || true; done
+  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do
+    pid="${pids[$i]}"
+    for _ in $(seq 100); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    if kill -0 "$pid" 2>/dev/null; then
+      echo "explore.sh: ${names[$i]} did not stop on SIGINT; terminating" >&2
+      kill -TERM "$pid" 2>/dev/null || true; sleep 2; kill -KILL "$pid" 2>/dev/null || true
+    fi
+  done
+}
+on_signal() {
+  echo; echo "explore.sh: interrupted: stopping the graph (the report so far is kept)" >&2
+  # The explorer writes its report on SIGINT; stop it first, the recorder last.
+  stop_all; summary; exit 130
+}
+summary() {
+  echo "run folder: $run_dir"
+  for f in run.mcap report.json progress.png shape.csv shape.ply; do
+    [ -e "$run_dir/$f" ] && echo "  $f"
+  done
+  return 0
+}
+trap on_signal INT TERM
+
+echo "ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVERY_RANGE; logs in $run_dir/logs" >&2
+start recorder recorder -p output:="$run_dir/run.mcap" -p "exclude:=[/rosout,/parameter_events]"
+if [ "$rig" = sim ]; then
+  start sim_rig sim_rig -p real_time_factor:="$rtf" -p sensor_link_path:="$sensor_link"
+else
+  python -m tactile_bringup.launch_plan wait-joint-states --timeout 15 || { stop_all; exit 1; }
+  if [ ! -e "$sensor_port" ]; then
+    echo "explore.sh: sensor device $sensor_port does not exist (--sensor-port)" >&2; stop_all; exit 1
+  fi
+fi
+start tactile_sensor tactile_sensor -p port:="$sensor_link"
+start gpis_estimator gpis_estimator
+start soc_planner soc_planner
+if [ "$rig" = hardware ] && [ "$yes" != 1 ]; then
+  read -r -p "The arm will move to the start pose and touch the object. Continue? [y/N] " answer < /dev/tty
+  case "$answer" in y|Y|yes) ;; *) echo "explore.sh: aborted before any motion" >&2; stop_all; exit 1 ;; esac
+fi
+start arm_commander arm_commander
+start explorer explorer -p "params_files:=$files_list" -p out_dir:="$run_dir" -p mode:="$mode" \
+  -p evaluate:=$([ "$rig" = sim ] && echo true || echo false)
+explorer_pid="${pids[-1]}"
+# Show the explorer's progress here while it runs.
+tail -n +1 -f "$run_dir/logs/explorer.log" --pid "$explorer_pid" &
+tail_pid=$!
+
+# Supervise: the run ends when the explorer exits; a node that dies ends it too.
+status=0
+while kill -0 "$explorer_pid" 2>/dev/null; do
+  for i in "${!pids[@]}"; do
+    if ! kill -0 "${pids[$i]}" 2>/dev/null; then
+      echo "explore.sh: ${names[$i]} exited unexpectedly; see $run_dir/logs/${names[$i]}.log:" >&2
+      tail -n 15 "$run_dir/logs/${names[$i]}.log" >&2
+      status=1
+      break 2
+    fi
+  done
+  sleep 0.5
+done
+if [ "$status" = 0 ]; then
+  wait "$explorer_pid" || status=$?
+fi
+stop_all
+wait "$tail_pid" 2>/dev/null || true
+summary
+exit "$status"
