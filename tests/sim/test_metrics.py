@@ -10,6 +10,7 @@ from tactile_sim.objects import make_object
 
 WORKSPACE_2D = np.array([[0.35, -0.15], [0.65, 0.15]])
 WORKSPACE_3D = np.array([[0.35, -0.15, -0.05], [0.65, 0.15, 0.22]])
+RNG_SURF = np.random.default_rng(3)
 
 
 def lens_area(r1: float, r2: float, d: float) -> float:
@@ -96,3 +97,25 @@ def test_surface_error_of_concentric_spheres():
     assert surface_error(obj, est) == pytest.approx(d, rel=0.02)
     with pytest.raises(ValueError, match="non-empty"):
         surface_error(obj, np.zeros((0, 3)))
+
+
+def test_3d_surface_error_ignores_the_face_on_the_table():
+    """The face the box stands on cannot be touched: an estimate without it has zero error."""
+    obj = make_object("box", mode="3d")
+    side = np.array([0.5, 0.0, 0.05]) + RNG_SURF.uniform(-1, 1, size=(60000, 3)) * [0.04, 0.03, 0.05]
+    k = RNG_SURF.integers(0, 5, len(side))  # project onto one of the 5 faces above the table
+    axis, sign = np.array([0, 0, 1, 1, 2])[k], np.array([-1, 1, -1, 1, 1])[k]
+    side[np.arange(len(side)), axis] = np.array([0.5, 0.0, 0.05])[axis] + sign * np.array([0.04, 0.03, 0.05])[axis]
+    assert surface_error(obj, side) < 0.002
+    top_only = side[side[:, 2] > 0.0999]
+    assert surface_error(obj, top_only) > 0.02
+
+
+def test_iou_cache_matches_direct_evaluation():
+    obj = make_object("torus", mode="3d", yaw_rad=0.3)
+    pts = evaluation_lattice(WORKSPACE_3D, 0.006)
+    direct = obj.sdf(pts) < 0
+    est = lambda p: np.linalg.norm(p - [0.5, 0.0, 0.018], axis=1) < 0.05  # noqa: E731
+    expected = np.count_nonzero(direct & est(pts)) / np.count_nonzero(direct | est(pts))
+    assert iou(est, obj, pts) == pytest.approx(expected, abs=1e-15)
+    assert iou(est, obj, pts) == pytest.approx(expected, abs=1e-15)  # cached

@@ -105,6 +105,81 @@ def test_icosphere_obj_matches_the_sphere_and_yaw_is_applied(tmp_path):
     assert np.all(np.abs(np.linalg.norm(on - c, axis=1) - 0.05) < 2 * sagitta)
 
 
+def l_block_triangles() -> np.ndarray:
+    """The catalogue's l_block (L profile in x-z, extruded ±3 cm in y) as a closed mesh, outward faces."""
+    prof = np.array([(0, 0), (0.12, 0), (0.12, 0.04), (0.04, 0.04), (0.04, 0.12), (0, 0.12)]) - [0.06, 0.0]
+    n = len(prof)
+    lift = lambda xz, y: np.array([xz[0], y, xz[1]])  # noqa: E731
+    tris = []
+    for i in range(n):  # side walls
+        a, b = prof[i], prof[(i + 1) % n]
+        tris += [(lift(a, -0.03), lift(b, -0.03), lift(b, 0.03)), (lift(a, -0.03), lift(b, 0.03), lift(a, 0.03))]
+    for i, j in ((4, 5), (5, 0), (0, 1), (1, 2)):  # caps: fan from the reflex vertex 3
+        for y in (-0.03, 0.03):
+            tris.append((lift(prof[3], y), lift(prof[i], y), lift(prof[j], y)))
+    tri = np.array(tris)
+    # Orient outward with the analytic solid: a point just off the face must be outside.
+    ref = make_object("l_block", mode="3d", center_xy_m=(0.0, 0.0))
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    probe = tri.mean(axis=1) + 1e-4 * nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    flip = ref.sdf(probe) < 0
+    tri[flip] = tri[flip][:, ::-1]
+    return tri
+
+
+def test_non_convex_l_block_mesh_matches_the_analytic_l_block(tmp_path):
+    path = tmp_path / "l.stl"
+    write_ascii_stl(path, l_block_triangles())
+    obj = make_object(path, mode="3d", yaw_rad=0.4)
+    ref = make_object("l_block", mode="3d", yaw_rad=0.4)
+    assert obj.mesh.closed
+    np.testing.assert_allclose(obj.bounds, ref.bounds, atol=1e-12)
+    p = sample_points(np.array([0.5, 0.0, 0.06]), 0.09, n=6000)
+    # Include points around the concave (reflex) edge, where a face normal alone gets the sign wrong.
+    corner = np.array([0.5 - 0.02 * np.cos(0.4), -0.02 * np.sin(0.4), 0.04])
+    p = np.vstack([p, corner + RNG.uniform(-0.015, 0.015, size=(3000, 3))])
+    np.testing.assert_allclose(obj.sdf(p), ref.sdf(p), atol=1e-12)
+
+
+def test_sharp_wedge_mesh_matches_the_extruded_triangle(tmp_path):
+    """A 28° apex edge: outside points there need the edge pseudonormal, not one face normal."""
+    from tactile_sim import sdf2d, sdf3d
+
+    prof = np.array([(-0.03, -0.06), (0.03, -0.06), (0.0, 0.06)])
+    tris = []
+    for i in range(3):
+        a, b = np.r_[prof[i], 0.0], np.r_[prof[(i + 1) % 3], 0.0]
+        up = np.array([0, 0, 0.06])
+        tris += [(a, b, b + up), (a, b + up, a + up)]
+    tris += [tuple(np.c_[prof, np.zeros(3)]), tuple(np.c_[prof, np.full(3, 0.06)])]
+    tri = np.array(tris)
+
+    def ref(p):
+        q = p - [0.5, 0.0, 0.03]
+        return sdf3d.extrude(q, lambda xy: sdf2d.polygon(xy, prof), (0, 1, 2), 0.03)
+
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    flip = ref(tri.mean(axis=1) + [0.5, 0, 0] + 1e-4 * nrm / np.linalg.norm(nrm, axis=1, keepdims=True)) < 0
+    tri[flip] = tri[flip][:, ::-1]
+    path = tmp_path / "wedge.stl"
+    write_binary_stl(path, tri)
+    obj = make_object(path, mode="3d")
+    apex = np.array([0.5, 0.06, 0.03])
+    p = np.vstack([sample_points(np.array([0.5, 0.0, 0.03]), 0.08, n=3000),
+                   apex + RNG.uniform(-0.02, 0.02, size=(3000, 3))])
+    np.testing.assert_allclose(obj.sdf(p), ref(p), atol=1e-8)  # float32 vertices
+
+
+def test_winding_number_of_a_closed_mesh_is_the_indicator(tmp_path):
+    from tactile_sim.mesh import MeshSDF
+
+    m = MeshSDF(icosphere(0.05, 2))
+    p = RNG.uniform(-0.08, 0.08, size=(500, 3))
+    r = np.linalg.norm(p, axis=1)
+    clear = np.abs(r - 0.05) > 0.003
+    np.testing.assert_allclose(m.winding_number(p[clear]), (r[clear] < 0.05).astype(float), atol=1e-9)
+
+
 def test_mesh_with_a_small_hole_uses_the_winding_number(tmp_path):
     tri = icosphere(0.05, 3)[1:]  # one triangle missing: 3 boundary edges of 1920
     path = tmp_path / "holey.stl"

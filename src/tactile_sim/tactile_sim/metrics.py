@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
 from typing import Callable
 
@@ -60,9 +61,26 @@ def iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> f
     if est.shape != (len(pts),):
         raise ValueError(f"inside_est returned shape {est.shape}, expected ({len(pts)},)")
     est = est.astype(bool)
-    true = obj.sdf(pts[:, :obj.dim]) < 0.0
+    true = true_inside(obj, pts)
     union = np.count_nonzero(est | true)
     return 1.0 if union == 0 else np.count_nonzero(est & true) / union
+
+
+def true_inside(obj: SDFObject, lattice_points: np.ndarray) -> np.ndarray:
+    """obj.sdf(points) < 0, cached on the object per lattice (keyed by a hash of the points)."""
+    pts = np.ascontiguousarray(lattice_points, dtype=float)
+    key = (pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest())
+    cache = obj.__dict__.setdefault("_inside_cache", {})
+    if key not in cache:
+        if len(cache) >= 4:
+            cache.pop(next(iter(cache)))
+        p = pts[:, :obj.dim]
+        # Only points inside the object's bounding box can be inside (saves most SDF calls).
+        box = np.all((p >= obj.bounds[0]) & (p <= obj.bounds[1]), axis=1)
+        inside = np.zeros(len(p), dtype=bool)
+        inside[box] = obj.sdf(p[box]) < 0.0
+        cache[key] = inside
+    return cache[key]
 
 
 @dataclass(frozen=True)
@@ -81,11 +99,16 @@ def true_surface_samples(obj: SDFObject, spacing_m: float | None = None) -> np.n
     """Samples of the true surface (cached on the object); in 3D without the face on the table."""
     if spacing_m is None:
         spacing_m = 0.001 if obj.dim == 2 else 0.003
-    s = obj.surface_samples(spacing_m)
-    if obj.dim == 3:
-        on_table = (s[:, 2] < TABLE_TOL_M) & (obj.gradient(s)[:, 2] < -0.999)
-        s = s[~on_table]
-    return s
+    cache = obj.__dict__.setdefault("_true_surface_cache", {})
+    key = round(float(spacing_m), 12)
+    if key not in cache:
+        s = obj.surface_samples(spacing_m)
+        if obj.dim == 3:
+            low = np.nonzero(s[:, 2] < TABLE_TOL_M)[0]
+            on_table = low[obj.gradient(s[low])[:, 2] < -0.999]
+            s = np.delete(s, on_table, axis=0)
+        cache[key] = s
+    return cache[key]
 
 
 def surface_error_stats(obj: SDFObject, estimated_surface_points: np.ndarray,

@@ -464,8 +464,16 @@ def _project_to_surface(obj: SDFObject, h: float, iterations: int = 6, tol_m: fl
     sub = (np.arange(factor) - 0.5 * (factor - 1)) * h
     offsets = np.stack(np.meshgrid(*([sub] * dim), indexing="ij"), axis=-1).reshape(-1, dim)
     p = (near[:, None, :] + offsets[None]).reshape(-1, dim)
-    p = p[np.abs(obj.sdf(p)) <= 0.5 * h * np.sqrt(dim)]
-    for _ in range(iterations):
-        p = p - obj.sdf(p)[:, None] * obj.gradient(p)
-    p = p[np.abs(obj.sdf(p)) < tol_m]
-    return p
+    d = obj.sdf(p)
+    keep = np.abs(d) <= 0.5 * h * np.sqrt(dim)
+    p, d = p[keep], d[keep]
+    done: list[np.ndarray] = []
+    for _ in range(iterations):  # one step is exact for an exact SDF; iterate only the rest
+        p = p - d[:, None] * obj.gradient(p)
+        d = obj.sdf(p)
+        ok = np.abs(d) < tol_m
+        done.append(p[ok])
+        p, d = p[~ok], d[~ok]
+        if len(p) == 0:
+            break
+    return np.concatenate(done)
