@@ -297,13 +297,18 @@ class ArmCommander:
             self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
             return
         task = self._task
-        if task is None or task.kind != "approach":
+        if task is None or task.kind == "retract":
             return
         stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
         hits = points[points["label"] == fields.LABEL_CONTACT]
-        if len(hits) and stamp_ns * 1e-9 >= task.start_s - 1e-3:
-            task.contact, task.contact_stamp_ns = hits[0], stamp_ns
-            self._halt(TaskResult.CONTACT, f"contact at {np.round(fields.xyz(hits[:1])[0], 4).tolist()}")
+        if not len(hits) or stamp_ns * 1e-9 < task.start_s - 1e-3:
+            return
+        task.contact, task.contact_stamp_ns = hits[0], stamp_ns
+        where = np.round(fields.xyz(hits[:1])[0], 4).tolist()
+        if task.kind == "approach":
+            self._halt(TaskResult.CONTACT, f"contact at {where}")
+        else:  # a free-space path must not touch anything: the map was wrong, stop
+            self._halt(TaskResult.ABORTED, f"unexpected contact at {where}")
 
     def _on_estop(self, msg: Bool) -> None:
         if self.estop.set(msg.data):

@@ -10,8 +10,6 @@ object: the commander's guarded approach must stop it.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -44,23 +42,22 @@ PARAMS = {
     "prism_height_m": (0.12, "prism height in 2D mode"),
     "sensor_enabled": (True, "serve the simulated tactile sensor on a pty"),
     "sensor_link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
-    "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's ring (2d) / hemisphere (3d)"),
+    "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "sensor_frame_rate_hz": (200.0, "sensor frame rate (simulated time)"),
-    "sensor_seed": (0, "seed of the sensor noise and faults"),
+    "sensor_seed": (0, "seed of the sensor noise, baselines and faults"),
+    "model.stiffness_pa_per_m": (2.0e7, "skin pressure per metre of penetration"),
+    "model.spread_m": (0.0025, "std of the skin's spatial spread"),
+    "model.counts_per_newton": (10000.0, "counts per newton (the driver's calibration)"),
+    "model.noise_counts": (2.0, "std of the taxel noise"),
     "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
     "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
     "fault.drop_prob": (0.0, "per frame: frame not sent"),
     "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
-    "fault.disconnect_at_s": (-1.0, "simulated time of a disconnect (negative: never)"),
+    "fault.stuck_value": (4000, "value of the stuck taxel"),
+    "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
+    "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
     "fault.disconnect_for_s": (1.0, "disconnect length"),
 }
-
-
-def _default_layout(mode: str) -> str:
-    from ament_index_python.packages import get_package_share_directory
-
-    name = "taxels_ring.yaml" if mode == "2d" else "taxels_hemisphere.yaml"
-    return os.path.join(get_package_share_directory("tactile_driver"), "config", name)
 
 
 class SimRig(Node):
@@ -91,16 +88,25 @@ class SimRig(Node):
         )
 
     def _make_device(self, p):
+        from tactile_driver.sensor_node import resolve_config_file
         from tactile_driver.taxels import load_layout
         from tactile_sim.objects import make_object
         from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
+        from tactile_sim.sensor_model import SensorModelConfig
 
-        obj = make_object(p.object, p.mode, tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
-        layout = load_layout(p.sensor_layout or _default_layout(p.mode))
-        faults = FaultConfig(garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob,
-                             drop_prob=p.fault_drop_prob, stuck_taxel=p.fault_stuck_taxel,
-                             disconnect_at_s=p.fault_disconnect_at_s, disconnect_for_s=p.fault_disconnect_for_s)
-        device = SimulatedSensorDevice(obj, layout, p.sensor_link_path, p.sensor_frame_rate_hz, p.sensor_seed, faults)
+        # The physical object is always a solid: in 2D mode the section becomes its prism
+        # (the finger above the prism must not touch it).
+        obj = make_object(p.object, "3d", tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
+        default = "taxels_ring.yaml" if p.mode == "2d" else "taxels_hemisphere.yaml"
+        layout = load_layout(resolve_config_file(p.sensor_layout or default))
+        faults = FaultConfig(
+            garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob, drop_prob=p.fault_drop_prob,
+            stuck_taxel=p.fault_stuck_taxel, stuck_value=p.fault_stuck_value, stuck_after_s=p.fault_stuck_after_s,
+            disconnect_at_s=p.fault_disconnect_at_s, disconnect_for_s=p.fault_disconnect_for_s)
+        model = SensorModelConfig(stiffness_pa_per_m=p.model_stiffness_pa_per_m, spread_m=p.model_spread_m,
+                                  counts_per_newton=p.model_counts_per_newton, noise_counts=p.model_noise_counts)
+        device = SimulatedSensorDevice(obj, layout, p.sensor_link_path, p.sensor_frame_rate_hz, p.sensor_seed,
+                                       faults, model)
         device.open()
         return device
 

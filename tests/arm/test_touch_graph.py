@@ -1,0 +1,87 @@
+"""sim_rig + tactile_sensor + arm_commander: a scripted touch next to a known object.
+
+The hidden object is the built-in 2D 'circle' (radius 4 cm, centre (0.50, 0.00));
+the truth (surface distance, outward normal) is computed here from that geometry.
+"""
+
+import math
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path
+from sensor_msgs.msg import PointCloud2
+
+from tactile_common import fields, qos, topics
+from tactile_common.pointcloud import from_pointcloud2
+
+from graph_helpers import done_values, goal_and_path
+
+pytestmark = pytest.mark.graph
+
+ROOT = FsPath(__file__).resolve().parents[2]
+CENTRE, RADIUS_M, Z_M = np.array([0.50, 0.0]), 0.04, 0.06
+STANDOFF_M, TIP_RADIUS_M = 0.01, 0.010
+
+
+def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_miss(ros_graph, tmp_path):
+    g = ros_graph
+    link = str(tmp_path / "sensor")
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.start("sim", ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
+                    "-p", f"sensor_link_path:={link}", "-p", "real_time_factor:=2.0"])
+    g.start("driver", ["tactile_sensor", "--ros-args", "--params-file",
+                       str(ROOT / "src/tactile_driver/config/tactile_sensor.yaml"),
+                       "-p", f"port:={link}", "-p", "use_sim_time:=true"])
+    g.start("arm", ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
+                    "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1"])
+    goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
+    path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)
+    g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count(),
+               30, "graph up (driver calibrating)")
+    # Candidate on the circle at 150 deg; the pre-touch point stands off along the normal.
+    n = np.array([math.cos(2.6), math.sin(2.6), 0.0])
+    candidate = np.array([*(CENTRE + RADIUS_M * n[:2]), Z_M])
+    pre = candidate + (STANDOFF_M + TIP_RADIUS_M) * n
+    goal, path = goal_and_path(pre, -n, [[0.45, 0.0, 0.30], [pre[0], pre[1], 0.15], pre], 3_000_000_000)
+    goal_pub.publish(goal)
+    path_pub.publish(path)
+    g.wait_for(lambda: done, 60, "touch_done")
+    v = done_values(done[0])
+    assert done[0].message == "contact", v
+    hits = [m for m in contacts if from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT]
+    assert len(hits) == 1 and len(contacts) == 1  # one point per touch, no free-space point
+    assert int(v["observation_stamp_ns"]) == hits[0].header.stamp.sec * 10**9 + hits[0].header.stamp.nanosec
+    pt = from_pointcloud2(hits[0])
+    p, normal = fields.xyz(pt)[0], fields.normals(pt)[0]
+    radial = (p[:2] - CENTRE) / np.linalg.norm(p[:2] - CENTRE)
+    assert abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) < 0.002, f"contact {p} is off the circle"
+    assert math.degrees(math.acos(np.clip(normal[:2] @ radial, -1.0, 1.0))) < 10.0, f"normal {normal} vs {radial}"
+    assert np.linalg.norm(p - candidate) < 0.005
+    # Retracted to the pre-touch pose.
+    last = poses[-1].pose.position
+    assert np.linalg.norm([last.x - pre[0], last.y - pre[1], last.z - pre[2]]) < 2e-3
+
+    # A goal that misses: a candidate 4 cm outside the true surface; the probe ends 1 cm short of it.
+    n2 = np.array([math.cos(-0.5), math.sin(-0.5), 0.0])
+    fake = np.array([*(CENTRE + (RADIUS_M + 0.04) * n2[:2]), Z_M])
+    pre2 = fake + (STANDOFF_M + TIP_RADIUS_M) * n2
+    goal, path = goal_and_path(pre2, -n2, [pre, [pre[0], pre[1], 0.15], [pre2[0], pre2[1], 0.15], pre2], 4_000_000_000)
+    goal_pub.publish(goal)
+    path_pub.publish(path)
+    g.wait_for(lambda: len(done) >= 2, 60, "second touch_done")
+    v2 = done_values(done[1])
+    assert done[1].message == "free_space", v2
+    assert len(contacts) == 2
+    free = from_pointcloud2(contacts[1])
+    assert free["label"][0] == fields.LABEL_FREE_SPACE
+    probe_end = fake - 0.02 * n2  # max depth beyond the candidate
+    np.testing.assert_allclose(fields.xyz(free)[0], probe_end, atol=1e-3)
+    assert np.linalg.norm(probe_end[:2] - CENTRE) - RADIUS_M - TIP_RADIUS_M > 0.009  # really free
+    print(f"contact error {abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) * 1e3:.2f} mm, "
+          f"normal error {math.degrees(math.acos(np.clip(normal[:2] @ radial, -1, 1))):.2f} deg, "
+          f"touch 1: {v['travel_m']} m {v['duration_s']} s, touch 2: {v2['travel_m']} m {v2['duration_s']} s")
