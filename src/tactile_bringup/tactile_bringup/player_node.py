@@ -11,7 +11,7 @@ times. Exits when done (unless ``loop``), after ``linger_s``.
 from __future__ import annotations
 
 import time
-from typing import Dict, Iterator, Optional, Tuple
+from typing import Iterator, Optional, Tuple
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -25,6 +25,7 @@ from tactile_common.node_main import run_node
 
 _EARLY_S = 0.0005  # publish a message this close to its due time now
 _ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
+_LOOP_GAP_S = 0.01  # pause between two passes of a loop
 
 
 class PlayerNode(Node):
@@ -46,6 +47,10 @@ class PlayerNode(Node):
             raise ValueError("parameter 'bag' (the .mcap to play) is required")
         if not p.rate > 0:
             raise ValueError(f"rate must be > 0, got {p.rate}")
+        if p.clock and not p.clock_hz > 0:
+            raise ValueError(f"clock_hz must be > 0, got {p.clock_hz}")
+        if not p.progress_period_s > 0:
+            raise ValueError(f"progress_period_s must be > 0, got {p.progress_period_s}")
         self._rec = Recording(p.bag)
         self._topics = self._rec.select(selected)
         if p.clock and topics.CLOCK in self._topics:
@@ -61,6 +66,8 @@ class PlayerNode(Node):
         }
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, qos.CLOCK) if p.clock else None
         self._total = sum(self._rec.topics[t].message_count for t in self._topics)
+        if self._total == 0:
+            raise ValueError(f"no messages to play in {p.bag} on {self._topics}")
         self._played = 0
         self._loops = 0
         self._iter: Optional[Iterator[Tuple[str, int, bytes]]] = None
@@ -93,16 +100,20 @@ class PlayerNode(Node):
         self._start_pass()
 
     def _start_pass(self) -> None:
+        self._cancel_timer()
         self._iter = self._rec.messages(self._topics)
         self._next = next(self._iter, None)
         self._pclock = PlaybackClock(self._rec.start_ns, time.monotonic(), self._p.rate)
         self._tick()
 
     # -- playback --------------------------------------------------------------
-    def _tick(self) -> None:
+    def _cancel_timer(self) -> None:
         if self._timer is not None:
             self.destroy_timer(self._timer)
             self._timer = None
+
+    def _tick(self) -> None:
+        self._cancel_timer()
         while self._next is not None:
             topic, t_ns, data = self._next
             delay_s = self._pclock.wall_s(t_ns) - time.monotonic()
@@ -118,7 +129,7 @@ class PlayerNode(Node):
         if self._p.loop:
             self._loops += 1
             self.get_logger().info(f"pass {self._loops} done; looping")
-            self._start_pass()
+            self._timer = self.create_timer(_LOOP_GAP_S, self._start_pass)  # not recursive
             return
         self._log_progress()
         self.get_logger().info(f"done: {self._played} messages played")

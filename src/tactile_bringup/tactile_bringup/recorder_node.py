@@ -12,7 +12,7 @@ SIGINT/SIGTERM finalise the file (``close``).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Dict, List, Optional
+from typing import Dict, Optional
 
 from rclpy.node import Node
 
