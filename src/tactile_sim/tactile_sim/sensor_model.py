@@ -55,9 +55,17 @@ class SensorModel:
         k = np.exp(-0.5 * d2 / config.spread_m**2)
         col = k.sum(axis=0)
         k /= np.maximum(col, np.median(col))[None, :]
-        self._kernel = k  # (N_taxels, N_samples)
+        self._kernel_t = np.ascontiguousarray(k.T)  # (N_samples, N_taxels): rows gathered per frame
+        # Clusters of samples around each taxel, for a cheap Lipschitz pre-test of the SDF.
+        owner = np.argmin(d2, axis=0)
+        self._cluster_of = owner
+        self._cluster_radius_m = np.zeros(layout.n_taxels)
+        np.maximum.at(self._cluster_radius_m, owner, np.sqrt(d2[owner, np.arange(s.shape[0])]))
         #: Radius of the sphere around the tip centre that holds every sample.
         self.bounding_radius_m = float(np.linalg.norm(s, axis=1).max())
+        # Samples that share (x, y) in the fingertip frame: one SDF value for a 2D object and a vertical finger.
+        self._xy_unique, self._xy_group = np.unique(np.round(s[:, :2], 9), axis=0, return_inverse=True)
+        self._xy_group = self._xy_group.reshape(-1)
         rng = np.random.default_rng(seed)
         self.baseline_counts = config.baseline_counts + config.baseline_spread_counts * rng.uniform(
             -1.0, 1.0, layout.n_taxels
@@ -68,10 +76,21 @@ class SensorModel:
         p = np.asarray(position_m, dtype=float)
         if _sdf(obj, p[None, :])[0] > self.bounding_radius_m:  # sdf is 1-Lipschitz
             return np.zeros(0, dtype=np.int64), np.zeros(0)
-        world = p + self._samples_m @ np.asarray(rotation, dtype=float).T
-        depth = -_sdf(obj, world)
-        idx = np.nonzero(depth > 0)[0]
-        return idx, self.config.stiffness_pa_per_m * depth[idx] * self._area_m2[idx]
+        R = np.asarray(rotation, dtype=float)
+        # sdf(x) >= sdf(c) - |x - c|: a cluster whose centre is farther out than its radius is free.
+        centres = p + self.layout.positions_m @ R.T
+        near = _sdf(obj, centres) < self._cluster_radius_m
+        cand = np.nonzero(near[self._cluster_of])[0]
+        if cand.size == 0:
+            return cand, np.zeros(0)
+        if getattr(obj, "dim", 3) == 2 and abs(R[2, 2]) > 1.0 - 1e-12:  # vertical finger over a prism
+            groups, inverse = np.unique(self._xy_group[cand], return_inverse=True)
+            depth = -np.asarray(obj.sdf(p[:2] + self._xy_unique[groups] @ R[:2, :2].T), dtype=float)[inverse.reshape(-1)]
+        else:
+            depth = -_sdf(obj, p + self._samples_m[cand] @ R.T)
+        inside = depth > 0
+        idx = cand[inside]
+        return idx, self.config.stiffness_pa_per_m * depth[inside] * self._area_m2[idx]
 
     def force_n(self, obj: Any, position_m: np.ndarray, rotation: np.ndarray = np.eye(3)) -> float:
         """Total spring force of the skin (N)."""
@@ -82,7 +101,7 @@ class SensorModel:
         idx, f = self.sample_forces_n(obj, position_m, rotation)
         out = self.baseline_counts.copy()
         if idx.size:
-            out += self.config.counts_per_newton * (self._kernel[:, idx] @ f)
+            out += self.config.counts_per_newton * (f @ self._kernel_t[idx])
         return out
 
     def add_noise(self, clean: np.ndarray, rng: Optional[np.random.Generator]) -> np.ndarray:

@@ -1,0 +1,147 @@
+"""Driver helpers without ROS: pose interpolation, device clock, serial reconnect, the pipeline."""
+
+import numpy as np
+import pytest
+import serial
+from sensor_shapes import Plane, rotation_about
+
+from tactile_driver.device_clock import DeviceClock
+from tactile_driver.driver import DriverConfig, SensorDriver
+from tactile_driver.pose_buffer import PoseBuffer, matrix_to_quat, quat_to_matrix
+from tactile_driver.protocol import encode_frame
+from tactile_driver.serial_link import SerialLink
+from tactile_driver.taxels import ring_layout
+from tactile_sim.sensor_model import SensorModel
+
+
+def test_quaternion_round_trip_and_interpolation_against_rodrigues():
+    rng = np.random.default_rng(0)
+    axis = rng.normal(size=3)
+    R0, R1 = rotation_about(axis, 0.2), rotation_about(axis, 0.8)
+    np.testing.assert_allclose(quat_to_matrix(matrix_to_quat(R1)), R1, atol=1e-12)
+    buf = PoseBuffer(max_age_s=5.0, tolerance_s=0.01)
+    buf.add(1.0, [0.0, 0.0, 0.0], matrix_to_quat(R0))
+    buf.add(2.0, [1.0, 2.0, 3.0], matrix_to_quat(R1))
+    p, R = buf.at(1.25)
+    np.testing.assert_allclose(p, [0.25, 0.5, 0.75], atol=1e-12)
+    np.testing.assert_allclose(R, rotation_about(axis, 0.35), atol=1e-9)  # slerp = angle interpolation
+    assert buf.at(2.005) is not None and buf.at(2.02) is None and buf.at(0.98) is None
+
+
+def test_pose_buffer_rejects_out_of_order_and_forgets_old():
+    buf = PoseBuffer(max_age_s=1.0)
+    assert buf.add(1.0, [0, 0, 0], [0, 0, 0, 1])
+    assert not buf.add(0.5, [0, 0, 0], [0, 0, 0, 1])
+    assert not buf.add(1.1, [np.nan, 0, 0], [0, 0, 0, 1])
+    assert not buf.add(1.2, [0, 0, 0], [0, 0, 0, 0])
+    buf.add(3.0, [0, 0, 0], [0, 0, 0, 1])
+    assert len(buf) == 1 and buf.rejected == 3
+
+
+def test_device_clock_offset_is_the_minimum_delay():
+    clock = DeviceClock(window_s=2.0)
+    rng = np.random.default_rng(1)
+    offset = 1000.0
+    for k in range(400):
+        dev = 0.005 * k
+        delay = 0.001 + rng.exponential(0.004)
+        host = clock.to_host(dev, dev + offset + delay)
+    assert host == pytest.approx(dev + offset + 0.001, abs=0.0015)
+    # a device reboot: time goes back, the estimate restarts
+    assert clock.to_host(0.0, 5000.0) == pytest.approx(5000.0)
+    assert clock.resets == 1
+
+
+class FakePort:
+    """Stands in for serial.Serial: plays chunks, raises when unplugged."""
+
+    def __init__(self, world):
+        self.world = world
+
+    def read(self, n):
+        if not self.world["plugged"]:
+            raise serial.SerialException("read failed: device disconnected")
+        return self.world["chunks"].pop(0) if self.world["chunks"] else b""
+
+    def reset_input_buffer(self):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_serial_link_reconnects_with_exponential_backoff():
+    world = {"plugged": True, "chunks": [b"abc"], "opens": []}
+
+    def opener(port, baud, timeout):
+        world["opens"].append(now[0])
+        if not world["plugged"]:
+            raise serial.SerialException(f"could not open port {port}")
+        return FakePort(world)
+
+    now = [0.0]
+    link = SerialLink("/dev/fake", 115200, backoff_min_s=0.1, backoff_max_s=0.4, opener=opener)
+    assert link.poll(0.0) == b"abc" and link.connected
+    world["plugged"] = False
+    for t in np.arange(0.01, 2.0, 0.01):
+        now[0] = round(float(t), 3)
+        assert link.poll(now[0]) == b""
+    assert link.disconnects == 1 and not link.connected
+    attempts = np.diff(world["opens"][1:])  # delays between failed attempts double up to the maximum
+    np.testing.assert_allclose(attempts[:4], [0.1, 0.2, 0.4, 0.4], atol=0.015)  # + poll granularity
+    world["plugged"], world["chunks"] = True, [b"xyz"]
+    t, got = 2.0, b""
+    while not link.connected:
+        got += link.poll(t)
+        t += 0.01
+    assert t < 2.42, "the next attempt comes within the maximum back-off"
+    assert link.reconnects == 1 and got == b"xyz"
+
+
+def test_bad_serial_parameters_are_clear_errors():
+    with pytest.raises(ValueError, match="empty"):
+        SerialLink("", 9600)
+    with pytest.raises(ValueError, match="baud"):
+        SerialLink("/dev/x", 0)
+
+
+def make_stream(model, obj, tips, t0_s=10.0):
+    rng = np.random.default_rng(0)
+    return [encode_frame(k, int((t0_s + 0.005 * k) * 1e6), model.frame(obj, tip, np.eye(3), rng))
+            for k, tip in enumerate(tips)]
+
+
+def test_pipeline_publishes_world_contact_only_with_a_pose():
+    layout = ring_layout()
+    model = SensorModel(layout, seed=0)
+    wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
+    tips = [[0.45, 0.0, 0.06]] * 40 + [[x, 0.0, 0.06] for x in np.linspace(0.499, 0.5006, 40)]
+    frames = make_stream(model, wall, tips)
+    # no pose at all: the onset is refused, and retried on every later frame
+    drv = SensorDriver(layout)
+    out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames)]
+    assert sum(len(o.contacts) for o in out) == 0 and drv.stats.refused_no_pose > 1
+    # with poses: one contact, mapped to the world with the pose at the frame's time
+    drv = SensorDriver(layout)
+    contacts = []
+    for k, (f, tip) in enumerate(zip(frames, tips)):
+        t = 10.0 + 0.005 * k
+        drv.add_pose(t, tip, [0, 0, 0, 1])
+        contacts += drv.feed(f, t + 0.001).contacts
+    assert len(contacts) == 1
+    c = contacts[0]
+    assert 10.2 < c.stamp_s < 10.4 + 0.001  # an approach frame, stamped with device time + offset
+    assert abs(c.point_xyz[0] - 0.51) < 0.001 and abs(c.point_xyz[1]) < 0.001
+    np.testing.assert_allclose(c.normal_xyz, [-1.0, 0.0, 0.0], atol=0.03)
+
+
+def test_pipeline_drops_stale_and_wrong_size_frames():
+    layout = ring_layout()
+    drv = SensorDriver(layout, config=DriverConfig(max_frame_age_s=0.1))
+    ok = encode_frame(0, 1_000_000, np.full(layout.n_taxels, 1000, np.uint16))
+    drv.feed(ok, 1.001)
+    stale = encode_frame(1, 1_005_000, np.full(layout.n_taxels, 1000, np.uint16))
+    wrong = encode_frame(2, 2_000_000, np.full(10, 1000, np.uint16))
+    assert drv.feed(stale, 1.5).frames == []
+    assert drv.feed(wrong, 2.001).frames == []
+    assert drv.stats.stale_frames == 1 and drv.stats.wrong_size_frames == 1 and drv.stats.frames == 1
