@@ -145,3 +145,35 @@ def test_pipeline_drops_stale_and_wrong_size_frames():
     assert drv.feed(stale, 1.5).frames == []
     assert drv.feed(wrong, 2.001).frames == []
     assert drv.stats.stale_frames == 1 and drv.stats.wrong_size_frames == 1 and drv.stats.frames == 1
+
+
+def test_onset_ahead_of_the_poses_waits_for_its_pose():
+    layout = ring_layout()
+    model = SensorModel(layout, seed=0)
+    wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
+    tips = [[0.45, 0.0, 0.06]] * 40 + [[x, 0.0, 0.06] for x in np.linspace(0.499, 0.5006, 40)]
+    frames = make_stream(model, wall, tips)
+    drv = SensorDriver(layout, config=DriverConfig(pose_tolerance_s=0.002, pose_wait_s=0.2))
+    contacts, lag = [], 8  # poses arrive 8 frames (40 ms) after the frames of the same time
+    for k, f in enumerate(frames):
+        t = 10.0 + 0.005 * k
+        if k >= lag:
+            contacts += drv.add_pose(t - 0.005 * lag, tips[k - lag], [0, 0, 0, 1])
+        contacts += drv.feed(f, t + 0.001).contacts
+    assert len(contacts) == 1 and drv.stats.refused_no_pose == 0
+    c = contacts[0]
+    k = int(round((c.stamp_s - 10.0) / 0.005))
+    assert abs(c.point_xyz[0] - (tips[k][0] + 0.01)) < 0.001  # mapped with the pose of its own time
+
+
+def test_pending_onset_is_refused_when_its_pose_never_comes():
+    layout = ring_layout()
+    model = SensorModel(layout, seed=0)
+    wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
+    tips = [[0.45, 0.0, 0.06]] * 40 + [[0.5006, 0.0, 0.06]] * 80
+    frames = make_stream(model, wall, tips)
+    drv = SensorDriver(layout, config=DriverConfig(pose_wait_s=0.1))
+    drv.add_pose(10.0, tips[0], [0, 0, 0, 1])  # the pose stream stops here
+    out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames)]
+    assert sum(len(o.contacts) for o in out) == 0
+    assert drv.stats.refused_no_pose >= 2  # expired, re-armed, expired again

@@ -5,14 +5,18 @@ stamps each frame with host time (:class:`DeviceClock`), drops stale frames
 (older than ``max_frame_age_s`` when read) and frames with the wrong taxel
 count, runs the :class:`ContactDetector`, and turns each contact onset into
 a world-frame contact with the fingertip pose interpolated at the frame's
-time (:class:`PoseBuffer`). An onset without a pose at that time is refused
-(counted) and the detector is re-armed, so the next frame with a pose can
-report it. The node publishes what ``feed`` returns.
+time (:class:`PoseBuffer`). An onset newer than the newest pose waits (at
+most ``pose_wait_s``) for the pose that covers its time, which arrives by
+another path (joint states -> commander); ``add_pose`` returns the contacts
+it completes. An onset older than the buffer, or one whose wait expires, is
+refused (counted) and the detector re-armed, so a later frame with a pose can
+report it. The node publishes what ``feed`` and ``add_pose`` return.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Optional
 
 import numpy as np
 
@@ -29,6 +33,7 @@ class DriverConfig:
     pose_tolerance_s: float = 0.02
     pose_buffer_s: float = 2.0
     clock_window_s: float = 2.0
+    pose_wait_s: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -68,18 +73,44 @@ class SensorDriver:
         self.poses = PoseBuffer(config.pose_buffer_s, config.pose_tolerance_s)
         self.clock = DeviceClock(config.clock_window_s)
         self.stats = DriverStats()
+        self._pending: list = []  # (stamp_s, ContactEstimate) waiting for a pose
 
     def device_reset(self) -> None:
         """After a reconnect: drop partial bytes, the sequence and the clock offset."""
         self.decoder.reset()
         self.clock.reset()
 
-    def add_pose(self, t_s: float, position_m: np.ndarray, q_xyzw: np.ndarray) -> bool:
-        return self.poses.add(t_s, position_m, q_xyzw)
+    def add_pose(self, t_s: float, position_m: np.ndarray, q_xyzw: np.ndarray) -> Optional[list]:
+        """Buffer a fingertip pose; the pending contacts it completes (None: pose rejected)."""
+        if not self.poses.add(t_s, position_m, q_xyzw):
+            return None
+        return self._resolve_pending(now_s=None)
+
+    def _resolve_pending(self, now_s: Optional[float]) -> list:
+        done, keep = [], []
+        for stamp_s, est in self._pending:
+            pose = self.poses.at(stamp_s)
+            if pose is not None:
+                done.append(self._world(stamp_s, est, pose))
+            elif now_s is not None and now_s - stamp_s > self.config.pose_wait_s:
+                self._refuse()
+            else:
+                keep.append((stamp_s, est))
+        self._pending = keep
+        return done
+
+    def _world(self, stamp_s: float, est, pose) -> WorldContact:
+        point, normal = est.to_world(*pose)
+        self.stats.contacts += 1
+        return WorldContact(stamp_s, point, normal, est.force_n)
+
+    def _refuse(self) -> None:
+        self.stats.refused_no_pose += 1
+        self.detector.in_contact = False  # re-arm: report it from a frame with a pose
 
     def feed(self, data: bytes, now_s: float) -> DriverOutput:
         """Process the bytes read at host time ``now_s``."""
-        out = DriverOutput()
+        out = DriverOutput(contacts=self._resolve_pending(now_s))
         for frame in self.decoder.feed(data):
             stamp_s = self.clock.to_host(frame.timestamp_s, now_s)
             if now_s - stamp_s > self.config.max_frame_age_s:
@@ -94,11 +125,11 @@ class SensorDriver:
             if est is None:
                 continue
             pose = self.poses.at(stamp_s)
-            if pose is None:
-                self.stats.refused_no_pose += 1
-                self.detector.in_contact = False  # re-arm: report it from a frame with a pose
-                continue
-            point, normal = est.to_world(*pose)
-            out.contacts.append(WorldContact(stamp_s, point, normal, est.force_n))
-            self.stats.contacts += 1
+            newest = self.poses.newest_s
+            if pose is not None:
+                out.contacts.append(self._world(stamp_s, est, pose))
+            elif newest is not None and stamp_s > newest:
+                self._pending.append((stamp_s, est))  # its pose is on the way
+            else:
+                self._refuse()
         return out

@@ -80,6 +80,10 @@ class PoseBuffer:
             self._q.popleft()
         return True
 
+    @property
+    def newest_s(self) -> Optional[float]:
+        return self._t[-1] if self._t else None
+
     def clear(self) -> None:
         self._t.clear()
         self._p.clear()

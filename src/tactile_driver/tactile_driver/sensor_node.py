@@ -27,7 +27,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_driver.contact import ContactConfig
-from tactile_driver.driver import DriverConfig, SensorDriver
+from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
 from tactile_driver.serial_link import SerialLink
 from tactile_driver.taxels import load_layout
 
@@ -43,6 +43,7 @@ PARAMS = {
     "max_frame_age_s": (0.25, "frames older than this when read are stale: never used"),
     "pose_tolerance_s": (0.02, "a frame may be this far outside the buffered poses"),
     "pose_buffer_s": (2.0, "length of the fingertip pose buffer"),
+    "pose_wait_s": (0.2, "a contact newer than the newest pose waits this long for its pose"),
     "clock_window_s": (2.0, "window of the device-clock offset estimate"),
     "contact.counts_per_newton": (10000.0, "taxel counts per newton of force"),
     "contact.on_threshold_n": (0.05, "contact on at this force"),
@@ -85,7 +86,7 @@ class TactileSensorNode(Node):
         )
         self.driver = SensorDriver(layout, contact, DriverConfig(
             max_frame_age_s=p.max_frame_age_s, pose_tolerance_s=p.pose_tolerance_s,
-            pose_buffer_s=p.pose_buffer_s, clock_window_s=p.clock_window_s))
+            pose_buffer_s=p.pose_buffer_s, clock_window_s=p.clock_window_s, pose_wait_s=p.pose_wait_s))
         self.link = SerialLink(p.port, p.baud, p.reconnect_min_s, p.reconnect_max_s)
         self.world_frame = p.world_frame
         self._connects_seen = 0
@@ -104,9 +105,13 @@ class TactileSensorNode(Node):
     def _on_pose(self, msg: PoseStamped) -> None:
         t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         pp, q = msg.pose.position, msg.pose.orientation
-        if not self.driver.add_pose(t, [pp.x, pp.y, pp.z], [q.x, q.y, q.z, q.w]):
+        completed = self.driver.add_pose(t, [pp.x, pp.y, pp.z], [q.x, q.y, q.z, q.w])
+        if completed is None:
             self._invalid_poses += 1
             self.get_logger().warn("ignored a fingertip pose (out of order or not finite)", throttle_duration_sec=5.0)
+            return
+        for c in completed:
+            self._publish_contact(c)
 
     def _poll(self) -> None:
         data = self.link.poll(time.monotonic())
@@ -124,14 +129,17 @@ class TactileSensorNode(Node):
             self._pub_taxels.publish(msg)
         self._rate_frames += len(out.frames)
         for c in out.contacts:
-            point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
-            point["x"], point["y"], point["z"] = c.point_xyz
-            point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
-            point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
-            self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, _stamp(c.stamp_s)))
-            self.get_logger().info(
-                f"contact at {np.round(c.point_xyz, 4).tolist()} normal {np.round(c.normal_xyz, 3).tolist()} "
-                f"force {c.force_n:.3f} N")
+            self._publish_contact(c)
+
+    def _publish_contact(self, c: WorldContact) -> None:
+        point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+        point["x"], point["y"], point["z"] = c.point_xyz
+        point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
+        point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
+        self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, _stamp(c.stamp_s)))
+        self.get_logger().info(
+            f"contact at {np.round(c.point_xyz, 4).tolist()} normal {np.round(c.normal_xyz, 3).tolist()} "
+            f"force {c.force_n:.3f} N")
 
     def _publish_diagnostics(self) -> None:
         now = time.monotonic()
