@@ -131,6 +131,10 @@ class MeshSDF:
         self.tri = v[keep]
         self.face_normals = cross[keep] / area2[keep, None]
         self._build_features(name)
+        self._a = self.tri[:, 0]
+        self._ab, self._ac = self.tri[:, 1] - self._a, self.tri[:, 2] - self._a
+        self._gram = np.column_stack([np.einsum("ij,ij->i", self._ab, self._ab), np.einsum("ij,ij->i", self._ab, self._ac),
+                                      np.einsum("ij,ij->i", self._ac, self._ac)])
         centres, self._index_owner, self._radius = _index_points(self.tri)
         self._tree = cKDTree(centres)
         self._k = min(k_nearest, len(centres))
@@ -167,7 +171,7 @@ class MeshSDF:
         k = self._k
         _, near = self._tree.query(p, k=k)
         near = self._index_owner[near.reshape(-1)]
-        d2, _, _ = _point_triangle(np.repeat(p, k, axis=0), self.tri[near])
+        d2, _, _ = self._pairs(np.repeat(p, k, axis=0), near)
         upper = np.sqrt(d2.reshape(-1, k).min(axis=1))
         cand = self._tree.query_ball_point(p, upper + self._radius + 1e-12, return_sorted=False)
         lengths = np.fromiter((len(c) for c in cand), dtype=np.int64, count=len(p))
@@ -179,7 +183,7 @@ class MeshSDF:
         best_r = np.zeros(len(p), dtype=np.int64)
         for s in range(0, len(owner), _PAIR_CHUNK):
             o, ti = owner[s:s + _PAIR_CHUNK], tri_idx[s:s + _PAIR_CHUNK]
-            d2, q, region = _point_triangle(p[o], self.tri[ti])
+            d2, q, region = self._pairs(p[o], ti)
             # owner is sorted: per-owner minimum by reduceat, then its first position.
             starts = np.r_[0, np.nonzero(np.diff(o))[0] + 1]
             mins = np.minimum.reduceat(d2, starts)
@@ -189,6 +193,9 @@ class MeshSDF:
             w = first[better]
             best_d2[o[w]], best_q[o[w]], best_t[o[w]], best_r[o[w]] = d2[w], q[w], ti[w], region[w]
         return np.sqrt(best_d2), best_q, best_t, best_r
+
+    def _pairs(self, p: np.ndarray, tri: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return _point_triangle(p, self._a[tri], self._ab[tri], self._ac[tri], self._gram[tri])
 
     def _feature_normal(self, tri: np.ndarray, region: np.ndarray) -> np.ndarray:
         n = self.face_normals[tri].copy()
@@ -287,19 +294,19 @@ def _index_points(tri: np.ndarray, max_levels: int = 10) -> tuple[np.ndarray, np
     return np.concatenate(pts), np.concatenate(owners), float(np.concatenate(radii).max())
 
 
-def _point_triangle(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Squared distance, closest point and Voronoi region of p (N,3) to triangles t (N,3,3) (Ericson 5.1.5)."""
-    a, b, c = t[:, 0], t[:, 1], t[:, 2]
-    ab, ac, ap = b - a, c - a, p - a
+def _point_triangle(p: np.ndarray, a: np.ndarray, ab: np.ndarray, ac: np.ndarray, gram: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Squared distance, closest point and Voronoi region of p (N,3) to triangles (Ericson 5.1.5).
 
-    def dot(x, y):
-        return np.einsum("ij,ij->i", x, y)
-
-    d1, d2 = dot(ab, ap), dot(ac, ap)
-    bp = p - b
-    d3, d4 = dot(ab, bp), dot(ac, bp)
-    cp = p - c
-    d5, d6 = dot(ab, cp), dot(ac, cp)
+    Triangles are given per pair by corner a, edges ab = b − a, ac = c − a (N,3) and
+    gram (N,3) = (ab·ab, ab·ac, ac·ac); with ap = p − a the six dot products are
+    d1 = ab·ap, d2 = ac·ap, d3 = d1 − ab·ab, d4 = d2 − ab·ac, d5 = d1 − ab·ac, d6 = d2 − ac·ac.
+    """
+    ap = p - a
+    d1 = ab[:, 0] * ap[:, 0] + ab[:, 1] * ap[:, 1] + ab[:, 2] * ap[:, 2]
+    d2 = ac[:, 0] * ap[:, 0] + ac[:, 1] * ap[:, 1] + ac[:, 2] * ap[:, 2]
+    d3, d4 = d1 - gram[:, 0], d2 - gram[:, 1]
+    d5, d6 = d1 - gram[:, 1], d2 - gram[:, 2]
     va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
     with np.errstate(divide="ignore", invalid="ignore"):
         conditions = [
@@ -312,11 +319,11 @@ def _point_triangle(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarra
         ]
         region = np.select(conditions, [_VA, _VB, _VC, _EAB, _EAC, _EBC], default=_FACE)
         denom = va + vb + vc
-        v_face, w_face = vb / denom, vc / denom
-        v = np.select([region == _VB, region == _EAB, region == _EBC, region == _FACE],
-                      [np.ones_like(d1), d1 / (d1 - d3), 1.0 - (d4 - d3) / ((d4 - d3) + (d5 - d6)), v_face], default=0.0)
-        w = np.select([region == _VC, region == _EAC, region == _EBC, region == _FACE],
-                      [np.ones_like(d1), d2 / (d2 - d6), (d4 - d3) / ((d4 - d3) + (d5 - d6)), w_face], default=0.0)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        v = np.select([region == _FACE, region == _VB, region == _EAB, region == _EBC],
+                      [vb / denom, 1.0, d1 / (d1 - d3), 1.0 - t_bc], default=0.0)
+        w = np.select([region == _FACE, region == _VC, region == _EAC, region == _EBC],
+                      [vc / denom, 1.0, d2 / (d2 - d6), t_bc], default=0.0)
     q = a + v[:, None] * ab + w[:, None] * ac
     diff = p - q
-    return dot(diff, diff), q, region
+    return diff[:, 0] ** 2 + diff[:, 1] ** 2 + diff[:, 2] ** 2, q, region
