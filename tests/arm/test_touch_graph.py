@@ -85,3 +85,5 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     print(f"contact error {abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) * 1e3:.2f} mm, "
           f"normal error {math.degrees(math.acos(np.clip(normal[:2] @ radial, -1, 1))):.2f} deg, "
           f"touch 1: {v['travel_m']} m {v['duration_s']} s, touch 2: {v2['travel_m']} m {v2['duration_s']} s")
+    codes = g.stop_all()
+    assert codes == {"arm": 0, "driver": 0, "sim": 0}, "nodes must exit cleanly on SIGINT"

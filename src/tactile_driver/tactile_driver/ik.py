@@ -81,8 +81,9 @@ class IKResult:
 
 def _dls(J: np.ndarray, damping: float) -> np.ndarray:
     """Damped pseudo-inverse Jᵀ (J Jᵀ + λ² I)⁻¹."""
-    m = J.shape[0]
-    return J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(m), np.eye(m))
+    A = J @ J.T
+    A[np.diag_indices_from(A)] += damping**2
+    return J.T @ np.linalg.inv(A)
 
 
 def tilt_of(rotation: np.ndarray) -> float:
@@ -119,6 +120,7 @@ def solve_ik(
     q = np.clip(np.asarray(q_init, dtype=float), lo, hi)
     rest = q.copy() if q_rest is None else np.asarray(q_rest, dtype=float)
     eye = np.eye(model.nq)
+    eye3 = np.eye(3)
     best = (np.inf, q.copy(), np.nan)
     for it in range(1, s.max_iterations + 1):
         p, R, J = model.fk_jacobian(q)
@@ -134,7 +136,7 @@ def solve_ik(
         Jp_pinv = _dls(Jp, s.damping)
         dq = Jp_pinv @ (s.gain * e_p)
         N1 = eye - Jp_pinv @ Jp
-        Jt = (np.eye(3) - np.outer(z, z)) @ J[3:]
+        Jt = (eye3 - np.outer(z, z)) @ J[3:]
         e_t = s.tilt_gain * np.cross(z, _EZ)
         JtN = Jt @ N1
         JtN_pinv = _dls(JtN, s.damping)
