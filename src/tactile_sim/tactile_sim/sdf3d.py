@@ -25,7 +25,7 @@ def box(p: np.ndarray, half_m: tuple[float, float, float]) -> np.ndarray:
     return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(np.max(q, axis=1), 0.0)
 
 
-def _cap(w_xy: np.ndarray, w_z: np.ndarray) -> np.ndarray:
+def cap(w_xy: np.ndarray, w_z: np.ndarray) -> np.ndarray:
     """Combine a 2D distance and an axial slab distance (exact intersection of a prism)."""
     w = np.column_stack([w_xy, w_z])
     return np.minimum(np.max(w, axis=1), 0.0) + np.linalg.norm(np.maximum(w, 0.0), axis=1)
@@ -33,7 +33,7 @@ def _cap(w_xy: np.ndarray, w_z: np.ndarray) -> np.ndarray:
 
 def capped_cylinder(p: np.ndarray, radius_m: float, half_height_m: float) -> np.ndarray:
     """Cylinder about z of radius r and |z| ≤ h."""
-    return _cap(np.hypot(p[:, 0], p[:, 1]) - radius_m, np.abs(p[:, 2]) - half_height_m)
+    return cap(np.hypot(p[:, 0], p[:, 1]) - radius_m, np.abs(p[:, 2]) - half_height_m)
 
 
 def capsule(p: np.ndarray, a: np.ndarray, b: np.ndarray, radius_m: float) -> np.ndarray:
@@ -52,7 +52,7 @@ def torus(p: np.ndarray, major_radius_m: float, minor_radius_m: float) -> np.nda
 
 def extrude(p: np.ndarray, sdf2d: Sdf2D, axes: tuple[int, int, int], half_length_m: float) -> np.ndarray:
     """Right prism: the 2D shape in coordinates (p[axes[0]], p[axes[1]]) extruded ±h along p[axes[2]]."""
-    return _cap(sdf2d(p[:, list(axes[:2])]), np.abs(p[:, axes[2]]) - half_length_m)
+    return cap(sdf2d(p[:, list(axes[:2])]), np.abs(p[:, axes[2]]) - half_length_m)
 
 
 def revolve(p: np.ndarray, sdf2d: Sdf2D) -> np.ndarray:
