@@ -1,5 +1,6 @@
 """sim_rig + arm_commander processes: a touch that misses gives a free-space point; unreachable goals move nothing."""
 
+import time
 from pathlib import Path as FsPath
 
 import numpy as np
@@ -68,6 +69,13 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     g.wait_for(lambda: len(done) >= 2, 20, "second touch_done")
     assert done[1].message == "unreachable" and "safety box" in done_values(done[1])["reason"]
     assert done[1].level == DiagnosticStatus.WARN
-    g.spin_once(0.5)
+    # Inside the box but out of the arm's reach (IK fails): reported, nothing sent.
+    far = np.array([0.74, 0.29, 0.55])
+    _publish_touch(g, far, direction, [[0.60, 0.20, 0.40], far], 2_500_000_000)
+    g.wait_for(lambda: len(done) >= 3, 20, "third touch_done")
+    assert done[2].message == "unreachable" and "IK found no solution" in done_values(done[2])["reason"]
+    assert done_values(done[2])["travel_m"] == "0.000000"
+    t_end = time.monotonic()
+    g.wait_for(lambda: time.monotonic() > t_end + 0.5, 5, "late trajectories")
     assert len(trajs) == n_traj
     assert g.procs["arm"].alive() and g.procs["sim"].alive()

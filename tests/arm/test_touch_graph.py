@@ -1,4 +1,7 @@
-"""sim_rig + tactile_sensor + arm_commander: a scripted touch next to a known object.
+"""sim_rig + tactile_sensor + arm_commander: scripted touches next to a known object.
+
+A touch gives a contact on the true surface; a miss gives the free-space probe end; a
+"free-space" path through the object is stopped on the unexpected contact.
 
 The hidden object is the built-in 2D 'circle' (radius 4 cm, centre (0.50, 0.00));
 the truth (surface distance, outward normal) is computed here from that geometry.
@@ -85,5 +88,16 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     print(f"contact error {abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) * 1e3:.2f} mm, "
           f"normal error {math.degrees(math.acos(np.clip(normal[:2] @ radial, -1, 1))):.2f} deg, "
           f"touch 1: {v['travel_m']} m {v['duration_s']} s, touch 2: {v2['travel_m']} m {v2['duration_s']} s")
+    # A "free-space" path straight through the object: the commander stops on the unexpected contact.
+    across = np.array([*(CENTRE - 0.10 * n2[:2]), Z_M])
+    goal, path = goal_and_path(across, n2, [pre2, across], 5_000_000_000)
+    goal_pub.publish(goal)
+    path_pub.publish(path)
+    g.wait_for(lambda: len(done) >= 3, 60, "third touch_done")
+    assert done[2].message == "aborted" and "unexpected contact" in done_values(done[2])["reason"]
+    assert from_pointcloud2(contacts[2])["label"][0] == fields.LABEL_CONTACT
+    # touched at path speed (5x the approach speed): the onset is detected a little deeper
+    assert abs(np.linalg.norm(fields.xyz(from_pointcloud2(contacts[2]))[0][:2] - CENTRE) - RADIUS_M) < 0.005
+    assert float(done_values(done[2])["travel_m"]) < 0.10 - RADIUS_M - TIP_RADIUS_M + 0.005  # stopped at the object
     codes = g.stop_all()
     assert codes == {"arm": 0, "driver": 0, "sim": 0}, "nodes must exit cleanly on SIGINT"
