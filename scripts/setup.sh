@@ -23,14 +23,14 @@ PY
   "$PYTHON" -m venv "$VENV"
 fi
 
-# What the install depends on: pins, and each package's metadata and data files
-# (code is installed editable, so editing a .py file needs no reinstall).
+# What the install depends on: pins, the package list and each package's
+# metadata. Code is installed editable (new or edited .py files need no
+# reinstall; a new console script changes setup.py, which does), and share/
+# links to config/ and launch/ below, so their edits are live too.
 stamp_now="$(cd "$ROOT" && {
   cat requirements.txt constraints.txt
-  find src -path '*/__pycache__' -prune -o -type f \( -name setup.py -o -name setup.cfg \
-       -o -name package.xml -o -path '*/resource/*' -o -path '*/config/*' -o -path '*/launch/*' \) -print \
-       | LC_ALL=C sort | xargs cat
-  find src \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f -print | LC_ALL=C sort
+  ls -d src/*/
+  cat src/*/setup.py src/*/setup.cfg src/*/package.xml
 } | sha256sum | cut -d' ' -f1)"
 stamp_file="$VENV/.tactile-install-stamp"
 if [ "$(cat "$stamp_file" 2>/dev/null)" != "$stamp_now" ]; then

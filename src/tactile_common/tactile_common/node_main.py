@@ -11,6 +11,7 @@ import sys
 from typing import Callable, Optional, Sequence
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, Executor, SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -22,8 +23,9 @@ def run_node(
 ) -> int:
     """Init rclpy, build the node, spin until SIGINT/SIGTERM, shut down.
 
-    A node whose constructor raises ``ValueError`` (bad parameters, a missing
-    file) logs the message and exits with status 2, without a traceback.
+    A node whose constructor raises ``ValueError`` or one of rclpy's parameter
+    exceptions (bad parameters, a missing file) logs the message and exits
+    with status 2, without a traceback.
     If the node has a ``close()`` method it is called before the node is
     destroyed, whatever ended the spin. A node that sets ``done = True``
     ends the spin itself (exit status 0, or the node's ``exit_status``).
@@ -37,7 +39,7 @@ def run_node(
     try:
         try:
             node = make_node()
-        except ValueError as exc:  # configuration errors: a message, not a traceback
+        except (ValueError, ParameterException) as exc:  # configuration errors: a message, not a traceback
             rclpy.logging.get_logger(getattr(make_node, "__name__", "node")).fatal(str(exc))
             return 2
         ex = executor() if executor is not None else SingleThreadedExecutor()
