@@ -119,9 +119,10 @@ class TactileSensorNode(Node):
             self._connects_seen = self.link.connects
             self.driver.device_reset()
             self.get_logger().info(f"sensor device {self.link.port} connected ({self.link.reconnects} reconnects)")
-        if not data:
+        now_ns = self.get_clock().now().nanoseconds
+        if not data or now_ns == 0:  # use_sim_time before the first /clock: frames cannot be timed
             return
-        now_s = self.get_clock().now().nanoseconds * 1e-9
+        now_s = now_ns * 1e-9
         out = self.driver.feed(data, now_s)
         for stamp_s, values in out.frames:
             msg = Float32MultiArray(data=values.astype(np.float32).tolist())

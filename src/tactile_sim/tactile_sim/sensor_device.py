@@ -5,8 +5,9 @@ side, so the driver opens ``link_path`` exactly like the physical sensor's
 serial port. The caller drives time: ``step(now_s)`` writes every frame due
 up to the simulated time ``now_s`` (frame k at t0 + k / frame_rate_hz), with
 the taxel counts of the pose last given to ``set_pose`` and the device
-timestamp t_k in microseconds. Frames the pty cannot take (nobody reading,
-buffer full) are lost, as on a real serial line.
+timestamp t_k in microseconds. Bytes the pty cannot take yet (reader
+stalled) wait in a small transmit buffer; when that is full, whole frames are
+lost, as on a real serial line.
 
 Faults (:class:`FaultConfig`, all seeded): garbage bytes between frames, a
 corrupted byte (bad CRC), dropped frames (sequence gaps), a stuck taxel, and a
@@ -63,7 +64,7 @@ class DeviceStats:
 
     frames_sent: int = 0
     frames_dropped: int = 0  # by the drop fault
-    frames_lost: int = 0  # not accepted by the pty (no reader / buffer full) or while disconnected
+    frames_lost: int = 0  # transmit buffer full (reader stalled), backlog skipped, or disconnected
     garbage_bursts: int = 0
     garbage_bytes: int = 0
     crc_corrupted: int = 0
@@ -76,6 +77,8 @@ class SimulatedSensorDevice:
 
     #: Frames older than this behind ``now_s`` are skipped, not written in a burst.
     MAX_BACKLOG_S = 0.5
+    #: Transmit buffer of the device: bytes the pty did not take yet are sent later.
+    TX_BUFFER_BYTES = 8192
 
     def __init__(
         self,
@@ -97,6 +100,7 @@ class SimulatedSensorDevice:
         self.model = SensorModel(layout, model_config, seed=seed)
         self.stats = DeviceStats()
         self._rng = np.random.default_rng(seed + 1)
+        self._out = bytearray()  # transmit buffer
         self._master: Optional[int] = None
         self._slave: Optional[int] = None
         self._position = np.array([0.0, 0.0, 1.0e3])  # far from everything until set_pose
@@ -135,6 +139,7 @@ class SimulatedSensorDevice:
             except OSError:
                 pass
         self._master = self._slave = None
+        self._out.clear()
         try:
             if self.link_path.is_symlink() and os.readlink(self.link_path) == target:
                 self.link_path.unlink()
@@ -167,6 +172,8 @@ class SimulatedSensorDevice:
             self.stats.frames_lost += skip_to - self._k
             self._k = skip_to
         self._handle_disconnect(now_s - self._t0)
+        if self.is_open and self._out:
+            self._flush()
         clean = None
         written = 0
         while self._k <= due:
@@ -183,6 +190,9 @@ class SimulatedSensorDevice:
 
     def _send(self, k: int, t_s: float, clean: np.ndarray) -> int:
         f = self.faults
+        if len(self._out) > self.TX_BUFFER_BYTES:  # the reader stalls: the device drops whole frames
+            self.stats.frames_lost += 1
+            return 0
         values = self.model.add_noise(clean, self._rng)
         if f.stuck_taxel >= 0 and t_s - self._t0 >= f.stuck_after_s:
             values[f.stuck_taxel] = f.stuck_value
@@ -201,16 +211,21 @@ class SimulatedSensorDevice:
             frame[i] ^= 1 << int(self._rng.integers(0, 8))
             self.stats.crc_corrupted += 1
         data += frame
-        try:
-            n = os.write(self._master, bytes(data))
-        except (BlockingIOError, OSError):
-            self.stats.frames_lost += 1
-            return 0
-        if n < len(data):  # a partial frame: the reader will see a resync
-            self.stats.frames_lost += 1
-            return 0
+        self._out += data
+        self._flush()
         self.stats.frames_sent += 1
         return 1
+
+    def _flush(self) -> None:
+        """Write as much of the transmit buffer as the pty takes now."""
+        try:
+            n = os.write(self._master, bytes(self._out))
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            _log.warning("simulated sensor write failed: %s", exc)
+            return
+        del self._out[:n]
 
     def _handle_disconnect(self, t_rel_s: float) -> None:
         f = self.faults
