@@ -58,6 +58,11 @@ def test_dry_run_plans_and_publishes_no_trajectory(ros_graph):
     g.wait_for(lambda: done, 20, "touch_done")
     assert done[0].message == "aborted" and "dry_run" in done_values(done[0])["reason"]
     assert len(planned) == 3 and all(len(m.points) > 1 for m in planned)  # path, approach, retract
+    # No joint states: planned from home, each motion from the end of the previous one.
+    np.testing.assert_allclose(planned[0].points[0].positions, HOME, atol=1e-9)
+    for a, b in zip(planned[:-1], planned[1:]):
+        np.testing.assert_allclose(b.points[0].positions, a.points[-1].positions, atol=1e-9)
+    np.testing.assert_allclose(planned[2].points[-1].positions, planned[1].points[0].positions, atol=2e-3)
     t_done = time.monotonic()
     g.wait_for(lambda: time.monotonic() > t_done + 0.3, 5, "late messages")
     assert sent == []

@@ -123,6 +123,7 @@ class ArmCommander:
         self.odometer_m = 0.0  # tip path length over all measured states
         self.approach_origin_xyz: Optional[np.ndarray] = None
         self._task: Optional[_Task] = None
+        self._dry_q: Optional[np.ndarray] = None  # dry run: end of the last plan (the arm "is" there)
         self._last: Optional[_Task] = None
         self.counters = {"invalid_joint_states": 0, "invalid_contacts": 0, "stops": 0, "rejected": 0}
         self._on_state = on_state
@@ -211,10 +212,8 @@ class ArmCommander:
 
     def _plan_start(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint vector and tip to plan from: measured, or (dry run without state) the last plan's end / home."""
-        if self.q is not None and not (self.cfg.dry_run and self._last is not None):
-            q = self.q
-        elif self._last is not None:
-            q = self._last.traj.positions_rad[-1]
+        if self.cfg.dry_run and self._dry_q is not None:
+            q = self._dry_q
         else:
             q = self.q if self.q is not None else self.home
         return q, self.model.fk(q)[0]
@@ -242,6 +241,7 @@ class ArmCommander:
         self._pub_planned.publish(msg)
         task = _Task(kind, traj, self.now_s())
         if self.cfg.dry_run:
+            self._dry_q = traj.positions_rad[-1]
             task.result, task.reason = TaskResult.SUCCEEDED, "dry run: planned, not sent"
             self._last = task
             return True
