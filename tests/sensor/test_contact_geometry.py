@@ -129,3 +129,11 @@ def test_approach_in_free_space_reports_no_contact():
                             rng=np.random.default_rng(0))
     assert not res.contact and res.travel_m == 0.03
     np.testing.assert_allclose(res.tip_xyz_at_stop, TIP0 - [0.03, 0.0, 0.0])
+
+
+def test_ring_contacts_carry_the_tip_height_exactly():
+    layout = ring_layout()
+    model = SensorModel(layout, seed=4)
+    d = np.array([0.0, 1.0, 0.0])
+    res = approach(Cylinder(TIP0[:2] + 0.05 * d[:2], 0.035, dim=2), layout, model, d, seed=1)
+    assert res.point_xyz[2] == TIP0[2]

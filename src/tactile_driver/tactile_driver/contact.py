@@ -19,7 +19,9 @@ Per frame (all taxel quantities vectorised over the N taxels):
    pressure-weighted mean of taxel positions, inside the finger), projected
    back to the finger surface along the direction from the finger axis
    (:meth:`TaxelLayout.project_to_surface`); the finger normal there is the
-   geometric one.
+   geometric one. With a ring layout (2D rig, no cap) the height is the
+   band's mid height (z = 0 for the default rings: the tip centre), so 2D
+   contacts carry exactly the tip's z.
 """
 
 from __future__ import annotations
@@ -153,6 +155,8 @@ class ContactDetector:
             return None
         w = signal[active]
         centre = (w @ self.layout.positions_m[active]) / w.sum()
+        if not self.layout.hemisphere:  # 2D rig: the contour is sensed at the band's mid height
+            centre[2] = 0.5 * sum(self.layout.axis_z_range_m)
         point, normal = self.layout.project_to_surface(centre[None, :])
         if not np.all(np.isfinite(point)):
             return None  # a pressure centroid on the axis has no direction
