@@ -35,6 +35,8 @@ while [ $# -gt 0 ]; do
   esac
 done
 case "$rig" in sim|hardware) ;; *) echo "explore.sh: --rig must be sim or hardware" >&2; exit 2 ;; esac
+[[ "$rtf" =~ ^[0-9]*\.?[0-9]+$ ]] || { echo "explore.sh: --real-time-factor must be a positive number" >&2; exit 2; }
+case "$rtf" in *.*) ;; *) rtf="$rtf.0" ;; esac  # a ROS double parameter needs the decimal point
 
 "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091

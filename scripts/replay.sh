@@ -3,20 +3,23 @@
 #
 #   scripts/replay.sh run.mcap [--rate X] [--topics /a /b ...] [--loop] [--clock]
 #                              [--wait S] [--linger S] [-- extra --ros-args ...]
+#   scripts/replay.sh run.mcap --offline [--params FILE]... [--out DIR]
 #
 # Publishes the recorded messages at their recorded timing (scaled by --rate)
 # with their recorded QoS (latched topics stay latched); --clock also
 # publishes /clock from the recorded times. Discovery stays on this host
 # (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless you set another value.
+# --offline starts no graph: it rebuilds the estimate from the recorded
+# contacts with the run's parameters (plus --params) and rewrites the report.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,10p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,13p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 die() { echo "replay.sh: error: $*" >&2; exit 2; }
 
 [ $# -ge 1 ] || { usage >&2; exit 2; }
 case "$1" in -h|--help) usage; exit 0 ;; esac
 BAG="$1"; shift
-RATE=1.0; LOOP=false; CLOCK=false; WAIT=2.0; LINGER=0.0; TOPICS=(); EXTRA=()
+OFFLINE=false; PARAMS=(); RATE=1.0; LOOP=false; CLOCK=false; WAIT=2.0; LINGER=0.0; TOPICS=(); EXTRA=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --rate) [ $# -ge 2 ] || die "--rate needs a value"; RATE="$2"; shift 2 ;;
@@ -26,7 +29,9 @@ while [ $# -gt 0 ]; do
     --linger) [ $# -ge 2 ] || die "--linger needs seconds"; LINGER="$2"; shift 2 ;;
     --topics) shift; while [ $# -gt 0 ] && [ "${1#--}" = "$1" ]; do TOPICS+=("$1"); shift; done
               [ ${#TOPICS[@]} -gt 0 ] || die "--topics needs at least one topic" ;;
-    --offline) die "--offline (re-analysis of the recorded contacts) is not available yet" ;;
+    --offline) OFFLINE=true; shift ;;
+    --params) [ $# -ge 2 ] || die "--params needs a file"; PARAMS+=(--params "$2"); shift 2 ;;
+    --out) [ $# -ge 2 ] || die "--out needs a folder"; PARAMS+=(--out "$2"); shift 2 ;;
     --) shift; EXTRA=("$@"); break ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown option '$1' (see --help)" ;;
@@ -43,6 +48,9 @@ RATE="$(as_double "$RATE")"; WAIT="$(as_double "$WAIT")"; LINGER="$(as_double "$
 # shellcheck disable=SC1091
 source "${TACTILE_VENV:-$ROOT/.venv}/tactile.env"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+if [ "$OFFLINE" = true ]; then  # no graph: rebuild the estimate and the report from the recording
+  exec python -m tactile_bringup.reanalyse "$BAG" "${PARAMS[@]}"
+fi
 
 ARGS=(--ros-args --params-file "$ROOT/src/tactile_bringup/config/player.yaml"
       -p "bag:=$(cd "$(dirname "$BAG")" && pwd)/$(basename "$BAG")" -p "rate:=$RATE" -p "loop:=$LOOP"

@@ -117,11 +117,17 @@ class Experiment:
 
     @property
     def gpis_params(self) -> dict[str, Any]:
-        return self.node_params("gpis_estimator")
+        """The estimator's parameters, its declared defaults filling what no file sets."""
+        from tactile_gpis.estimator import PARAMETERS
+
+        return {**{k: v[0] for k, v in PARAMETERS.items()}, **self.node_params("gpis_estimator")}
 
     @property
     def planner_params(self) -> dict[str, Any]:
-        return self.node_params("soc_planner")
+        """The planner's parameters, its declared defaults filling what no file sets."""
+        from tactile_planner.planner import PARAMETERS
+
+        return {**{k: v[0] for k, v in PARAMETERS.items()}, **self.node_params("soc_planner")}
 
     @property
     def sensor_params(self) -> dict[str, Any]:

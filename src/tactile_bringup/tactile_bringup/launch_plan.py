@@ -9,6 +9,7 @@ delivers a message, 1 after the timeout (the real rig's check).
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -29,11 +30,18 @@ def plan(args: argparse.Namespace) -> int:
         from tactile_sim.objects import make_object
 
         make_object(exp.object_name, mode=exp.mode, **exp.object_pose_kwargs())  # fails clearly if unknown
+    # Copy every file into the run folder: the run stays reproducible when the
+    # package defaults change later (replay.sh --offline reads them back).
     params_dir = Path(args.out) / "params"
     params_dir.mkdir(parents=True, exist_ok=True)
-    exp.write_overrides(params_dir / "overrides.yaml")
-    for path in exp.params_files + [params_dir / "overrides.yaml"]:
-        print(Path(path).resolve())
+    copies = []
+    for i, path in enumerate(exp.params_files):
+        copy = params_dir / f"{i:02d}_{Path(path).name}"
+        shutil.copyfile(path, copy)
+        copies.append(copy)
+    copies.append(exp.write_overrides(params_dir / f"{len(copies):02d}_overrides.yaml"))
+    for path in copies:
+        print(path.resolve())
     print(f"{exp.object_name} {exp.mode} {exp.strategy} seed {exp.seed}, {exp.touches} touches", file=sys.stderr)
     return 0
 

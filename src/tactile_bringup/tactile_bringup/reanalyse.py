@@ -1,0 +1,107 @@
+"""Offline re-analysis of a recorded run: ``scripts/replay.sh run.mcap --offline``.
+
+No graph: rebuilds the estimate from the recorded observations
+(``/tactile/contacts``) in the order the touches ended (``/arm/touch_done``),
+with the recorded targets (``/planner/goal``) and decision times
+(``/planner/status``), recomputes the report and figures, and writes them
+to ``--out`` (default: ``<run folder>/reanalysis``). Parameters: the files
+the run's nodes got (``<run folder>/params/``), then the user's ``--params``
+(e.g. other GPIS hyperparameters).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Optional, Sequence
+
+from rclpy.serialization import deserialize_message
+
+from tactile_common import topics
+from tactile_common.params_file import node_params
+from tactile_common.pointcloud import from_pointcloud2
+
+from .bag_ros import message_class
+from .cli_common import run_main
+from .experiment import Experiment
+from .player import Recording
+from .progress import RunRecorder
+
+PLANNER_STATUS = "/planner/status"
+
+
+def stamp_ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def run_params_files(bag: Path) -> list[Path]:
+    """The parameter files a run's nodes got, saved by explore.sh next to the recording."""
+    params_dir = bag.parent / "params"
+    files = sorted(params_dir.glob("*.yaml"))
+    if not files:
+        raise ValueError(f"{params_dir} holds no parameter files: re-analysis needs the run folder "
+                         "written by scripts/explore.sh (or pass --params with every node's files)")
+    return files
+
+
+def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evaluate: bool = True) -> dict:
+    """Rebuild the run's report from its recording; returns the report."""
+    recording = Recording(bag)
+    files = run_params_files(bag) + [Path(p) for p in user_params]
+    mode = str(node_params(files, "gpis_estimator").get("mode", "2d"))
+    exp = Experiment.from_files(mode, [str(f) for f in files])
+    run = RunRecorder(exp, out_dir, evaluate=evaluate)
+    wanted = [t for t in (topics.CONTACTS, topics.GOAL, PLANNER_STATUS, topics.TOUCH_DONE) if t in recording.topics]
+    if topics.TOUCH_DONE not in wanted or topics.CONTACTS not in wanted:
+        raise ValueError(f"{bag} has no {topics.TOUCH_DONE} or {topics.CONTACTS}: not an exploration run")
+    types = {t: message_class(recording.topics[t].type_name) for t in wanted}
+    observations, goals, decision_ms = {}, {}, {}
+    for topic, _, data in recording.messages(wanted):
+        msg = deserialize_message(data, types[topic])
+        if topic == topics.CONTACTS:
+            points = from_pointcloud2(msg)
+            if len(points):
+                observations[stamp_ns(msg.header.stamp)] = points[0]
+        elif topic == topics.GOAL:
+            goals[stamp_ns(msg.header.stamp)] = msg
+        elif topic == PLANNER_STATUS:
+            values = {kv.key: kv.value for kv in msg.values}
+            if "decision_ms" in values:
+                decision_ms[int(values.get("stamp_ns", 0) or 0)] = float(values["decision_ms"])
+        else:
+            values = {kv.key: kv.value for kv in msg.values}
+            travel, duration = float(values.get("travel_m") or 0), float(values.get("duration_s") or 0)
+            obs_ns = int(values.get("observation_stamp_ns") or 0)
+            if msg.message in ("contact", "free_space") and obs_ns in observations:
+                goal_ns = int(values.get("goal_stamp_ns") or 0)
+                run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,
+                              decision_ms.get(goal_ns, float("nan")))
+            else:
+                run.add_travel(travel, duration)
+    report = run.report("recording ended")
+    run.write("recording ended")
+    return report
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="replay.sh RUN.mcap --offline", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", type=Path, help="run.mcap of a run folder")
+    parser.add_argument("--params", type=Path, action="append", default=[], help="parameter overrides (repeatable)")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (default <run>/reanalysis)")
+    parser.add_argument("--no-evaluate", action="store_true", help="no ground truth (a real-rig run)")
+    args = parser.parse_args(argv)
+
+    def body() -> int:
+        out = args.out or args.bag.parent / "reanalysis"
+        report = reanalyse(args.bag, out, args.params, evaluate=not args.no_evaluate)
+        s = report["summary"]
+        iou = "n/a" if s["final_iou"] is None else f"{s['final_iou']:.3f}"
+        print(f"{s['touches']} touches re-analysed: final IoU {iou}, travel {s['travel_m']:.2f} m; wrote {out}")
+        return 0
+
+    return run_main(body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
