@@ -42,6 +42,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "contact": _round(point_xyz) if contact else None,
         "normal": _round(normal_xyz) if contact else None,
         "outcome": "contact" if contact else "free_space",
+        "probe_end": None if contact else _round(point_xyz),  # free space: finger centre at max depth
         "travel_m": float(travel_m),
         "time_s": float(time_s),
         "iou": evaluator.iou(estimator) if evaluator else None,

@@ -4,6 +4,7 @@
 
     {"object", "mode", "strategy", "seed", "config": {...},
      "touches": [{"index", "target", "contact"|null, "normal"|null, "outcome",
+                  "probe_end"|null (free space: the finger centre at max depth),
                   "travel_m" (cumulative), "time_s" (cumulative), "iou",
                   "surface_error_m", "decision_ms"}, ...],
      "summary": {"final_iou", "travel_to_iou_0.90_m", "travel_to_iou_0.95_m",

@@ -1,0 +1,91 @@
+"""The offline exploration loop: invariants on a circle, determinism, report schema, tiny grid."""
+
+import json
+
+import numpy as np
+import pytest
+
+from tactile_bringup import benchmark
+from tactile_bringup.experiment import Experiment
+from tactile_bringup.loop import ExplorationLoop
+from tactile_bringup.report import auc_travel, check_report, first_reaching, summarise
+from tactile_sim.objects import make_object
+
+
+@pytest.fixture(scope="module")
+def circle_run():
+    exp = Experiment(mode="2d", object_name="circle", strategy="proposed", touches=8, seed=3)
+    loop = ExplorationLoop(exp)
+    return exp, loop.run()
+
+
+def test_loop_invariants_on_a_circle(circle_run):
+    exp, report = circle_run
+    check_report(report)
+    touches = report["touches"]
+    assert len(touches) == 8
+    travel = np.array([t["travel_m"] for t in touches])
+    time_s = np.array([t["time_s"] for t in touches])
+    assert np.all(np.diff(travel) > 0) and np.all(np.diff(time_s) > 0), "cumulative travel and time grow"
+    circle = make_object("circle", mode="2d")
+    tip_r = exp.planner_params["tip_radius_m"]
+    for t in touches:
+        if t["outcome"] == "contact":
+            # On the true surface within the skin's penetration and the sensor noise.
+            assert abs(circle.sdf(np.array([t["contact"][:2]]))[0]) < 1.5e-3
+            n_true = circle.gradient(np.array([t["contact"][:2]]))[0]
+            assert np.dot(n_true, t["normal"][:2]) > np.cos(np.radians(10))
+        else:
+            # A free-space probe end is the finger centre: the finger never reached the object.
+            assert circle.sdf(np.array([t["probe_end"][:2]]))[0] > tip_r - 0.5e-3
+    assert sum(t["outcome"] == "contact" for t in touches) >= 6
+    assert touches[-1]["iou"] > 0.9, "a circle is easy"
+    assert all(t["target"][2] == pytest.approx(exp.gpis_params["plane_z_m"]) for t in touches)
+    assert tip_r > 0
+
+
+def test_same_seed_same_touch_sequence(circle_run):
+    exp, report = circle_run
+    again = ExplorationLoop(Experiment(mode="2d", object_name="circle", strategy="proposed",
+                                       touches=8, seed=3)).run()
+    assert [t["target"] for t in again["touches"]] == [t["target"] for t in report["touches"]]
+    assert [t["contact"] for t in again["touches"]] == [t["contact"] for t in report["touches"]]
+
+
+def test_summary_against_hand_computation():
+    touches = [{"iou": 0.5, "travel_m": 1.0, "time_s": 10.0},
+               {"iou": 0.92, "travel_m": 1.5, "time_s": 14.0},
+               {"iou": 0.96, "travel_m": 2.5, "time_s": 20.0}]
+    # (1-0.2)*1.0 + (1-0.5)*0.5 + (1-0.92)*1.0
+    assert auc_travel(touches, 0.2) == pytest.approx(0.8 + 0.25 + 0.08)
+    assert first_reaching(touches, 0.90, "travel_m") == 1.5
+    assert first_reaching(touches, 0.95, "time_s") == 20.0
+    s = summarise(touches, 0.2, "touch budget")
+    assert s["travel_to_iou_0.95_m"] == 2.5 and s["final_iou"] == 0.96 and s["touches"] == 3
+    assert summarise(touches[:1], 0.2, "x")["travel_to_iou_0.90_m"] is None
+
+
+def test_bad_choices_are_clear_errors():
+    with pytest.raises(ValueError, match="unknown object"):
+        ExplorationLoop(Experiment(mode="2d", object_name="no_such_shape", touches=1))
+    with pytest.raises(ValueError, match="mode"):
+        Experiment(mode="4d")
+    with pytest.raises(ValueError, match="no such parameter file"):
+        Experiment(mode="2d", user_params_files=["/nonexistent.yaml"])
+
+
+@pytest.mark.slow
+def test_tiny_benchmark_grid(tmp_path, capsys):
+    status = benchmark.main(["--mode", "2d", "--objects", "circle,ellipse", "--strategies", "proposed,uncertainty",
+                             "--seeds", "1", "--touches", "3", "--jobs", "2", "--out", str(tmp_path)])
+    assert status == 0
+    runs = json.loads((tmp_path / "runs.json").read_text())
+    assert sorted((r["object"], r["strategy"]) for r in runs) == [
+        ("circle", "proposed"), ("circle", "uncertainty"), ("ellipse", "proposed"), ("ellipse", "uncertainty")]
+    for r in runs:
+        check_report(r)
+        assert len(r["touches"]) == 3
+    md = (tmp_path / "summary.md").read_text()
+    assert "| circle | proposed | 1 |" in md and "Whole suite" in md
+    for name in ("iou_vs_travel.png", "iou_vs_time.png", "gallery.png"):
+        assert (tmp_path / name).stat().st_size > 1000
