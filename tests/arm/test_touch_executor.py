@@ -1,0 +1,136 @@
+"""The touch state machine over a scripted fake commander (no ROS graph): outcomes, order of verbs, reports."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from tactile_driver.commander_api import TaskResult
+from tactile_driver.safety import EStopLatch, OutsideWorkspace
+from tactile_driver.touch_executor import TouchExecutor, TouchRequest
+from tactile_driver.trajectory import TimedTrajectory
+
+
+def _traj(length_m):
+    tip = np.array([[0.0, 0.0, 0.0], [length_m, 0.0, 0.0]])
+    return TimedTrajectory(np.array([0.0, 1.0]), np.zeros((2, 7)), np.zeros((2, 7)), tip)
+
+
+class FakeArm:
+    """Completes each verb at the next update with a scripted result."""
+
+    def __init__(self, results, plan_error=None):
+        self.results = list(results)  # one TaskResult per verb, in order
+        self.plan_error = plan_error
+        self.calls = []
+        self.cfg = SimpleNamespace(dry_run=False, approach_speed_mps=0.02, approach_step_m=0.005)
+        self.estop = EStopLatch()
+        self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06]), np.eye(3)))
+        self.tip_xyz = np.zeros(3)
+        self.odometer_m = 0.0
+        self.t = 0.0
+        self._last = None
+
+    def now_s(self):
+        return self.t
+
+    def plan(self, path, q_start=None, speed_mps=None, step_m=None):
+        self.calls.append("plan")
+        if self.plan_error:
+            raise self.plan_error
+        return _traj(0.1)
+
+    def _verb(self, name, length):
+        self.calls.append(name)
+        result = self.results.pop(0)
+        if result == TaskResult.REJECTED:
+            self._last = SimpleNamespace(result=result, reason="refused", traj=_traj(0.0), contact_stamp_ns=0)
+            return False
+        self.odometer_m += length
+        self._last = SimpleNamespace(result=result, reason=result.name, traj=_traj(length), contact_stamp_ns=42)
+        return True
+
+    def follow_path(self, path):
+        return self._verb("follow_path", 0.3)
+
+    def approach(self, direction, depth):
+        return self._verb("approach", 0.02)
+
+    def retract(self):
+        return self._verb("retract", 0.02)
+
+    def is_task_complete(self):
+        return True
+
+    def get_result(self):
+        return self._last.result
+
+    @property
+    def last_task(self):
+        return self._last
+
+
+def run(arm):
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s: free.append((p, s)), done.append)
+    ex.submit(TouchRequest(7, np.array([0.4, 0.2, 0.06]), np.array([0.0, 1.0, 0.0]), np.zeros((1, 3))))
+    for _ in range(10):
+        arm.t += 0.3
+        ex.update()
+    return free, done
+
+
+def test_contact_touch():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.SUCCEEDED])
+    free, done = run(arm)
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract"]
+    assert free == [] and len(done) == 1
+    r = done[0]
+    assert (r.outcome, r.observation_stamp_ns, r.goal_stamp_ns) == ("contact", 42, 7)
+    assert r.travel_m == pytest.approx(0.34)
+    assert r.duration_s >= 0.5  # dwell included
+
+
+def test_free_space_touch_publishes_the_probe_end():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.SUCCEEDED, TaskResult.SUCCEEDED])
+    free, done = run(arm)
+    assert len(free) == 1 and done[0].outcome == "free_space"
+    np.testing.assert_allclose(free[0][0], [0.4, 0.2, 0.06])
+    assert done[0].observation_stamp_ns == free[0][1]
+    assert done[0].values()["observation_stamp_ns"] == str(free[0][1])
+
+
+def test_unreachable_touch_moves_nothing():
+    err = OutsideWorkspace(0, np.array([0.9, 0.0, 0.1]), np.zeros(3), np.ones(3))
+    arm = FakeArm([], plan_error=err)
+    free, done = run(arm)
+    assert "follow_path" not in arm.calls
+    assert done[0].outcome == "unreachable" and done[0].travel_m == 0.0 and "safety box" in done[0].reason
+    assert done[0].values()["observation_stamp_ns"] == ""
+
+
+@pytest.mark.parametrize("results, where", [
+    ([TaskResult.ABORTED], "path"),
+    ([TaskResult.SUCCEEDED, TaskResult.REJECTED], "approach"),
+    ([TaskResult.SUCCEEDED, TaskResult.ABORTED], "approach"),
+    ([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.ABORTED], "retract"),
+])
+def test_aborts_end_the_touch(results, where):
+    arm = FakeArm(results)
+    free, done = run(arm)
+    assert done[0].outcome == "aborted" and done[0].reason.startswith(where)
+    assert len(done) == 1 and arm.results == []
+
+
+def test_estop_during_dwell_skips_the_retract():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT])
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s: free.append((p, s)), done.append)
+    ex.submit(TouchRequest(1, np.zeros(3), np.array([1.0, 0, 0]), np.zeros((1, 3))))
+    ex.update()  # -> approach
+    ex.update()  # contact -> dwell
+    arm.estop.set(True)
+    arm.t += 1.0
+    ex.update()
+    assert done[0].outcome == "aborted" and done[0].reason == "e-stop"
+    assert "retract" not in arm.calls
