@@ -40,7 +40,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "solver": ("auto", "LMDP linear solver: 'auto' (2D LU, 3D CG), 'lu' or 'cg'"),
     "cost_rate_per_m": (200.0, "LMDP state cost per metre of travel (nats/m); larger = closer to shortest paths"),
     "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × lattice diagonal ≤ this (no underflow)"),
-    "cg_rtol": (1e-12, "relative residual tolerance of the 3D conjugate gradients"),
+    "cg_max_rate_nats": (5.0, "numerics with CG (3D): rate × lattice diagonal ≤ this, so every cost stays within CG's accuracy"),
+    "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients"),
     "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)"),
     "shell_m": (0.0, "3D: keep only nodes with mean ≤ margin + shell (0 = all free space)"),
     "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths"),
@@ -88,6 +89,7 @@ class PlanResult:
     n_unreachable: int = 0
     n_excluded: int = 0
     n_nodes: int = 0
+    backend_info: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -122,7 +124,8 @@ class TouchPlanner:
         self.seed = int(seed)
         self.rng = np.random.default_rng(self.seed)
         self.backend = make_backend(p["backend"], float(p["cost_rate_per_m"]), float(p["max_rate_nats"]),
-                                    str(p["solver"]), float(p["cg_rtol"]))
+                                    str(p["solver"]), float(p["cg_rtol"]),
+                                    float(p["cg_max_rate_nats"]))
         self.strategy_params = StrategyParams(
             alpha=float(p["alpha"]), score_form=str(p["score_form"]),
             sequential_step_rad=float(p["sequential_step_rad"]),
@@ -226,13 +229,19 @@ class TouchPlanner:
             pts = shortcut(graph, pts)
         pts = _dedupe(pts)
         n_unreach = int(m - excluded.sum() - (reachable).sum())
+        info = dict(getattr(self.backend, "last_info", {}))
+        extra = ""
+        if info.get("n_beyond_range"):
+            extra += f"; {info['n_beyond_range']} costs beyond the solver's range (best-path bound used)"
+        if info.get("path_fallback"):
+            extra += "; path: shortest-path fallback"
         return PlanResult(
             "ok",
             f"candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
-            f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}",
+            f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}{extra}",
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
             path_xyz=pts, scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
-            n_unreachable=n_unreach, **base,
+            n_unreachable=n_unreach, backend_info=info, **base,
         )
 
 

@@ -17,8 +17,18 @@ The expected length of the optimal controlled paths is ∂C_b/∂rate (one more
 solve with the same matrix); it is reported as ``travel_m``.
 
 Numerics: the rate is scaled down (``rate_eff``) so that rate_eff × lattice
-diagonal ≤ ``max_rate_nats``; u is then within float range across the whole
-lattice and costs are taken as −log of positive numbers (log domain).
+diagonal ≤ ``max_rate_nats``; with the KL term (≤ log D per step) the
+largest cost across a 128² (2D) or 48³ (3D) lattice then stays far above
+float underflow (e^−708), and costs are taken as −log of positive numbers.
+The sparse LU of this M-matrix needs no pivoting and its triangular solves
+add positive terms only, so every entry of u is accurate relative to itself.
+Conjugate gradients (3D default: fast) is accurate only relative to max(u),
+so with CG the rate budget is ``cg_max_rate_nats`` (default 5: costs then
+span ~8–22 nats on a 48³ shell and CG matches LU to 1e-6 nats);
+candidates whose u falls below 1e3·rtol·max(u) are reported
+(``last_info['n_beyond_range']``) and get the single-best-path LMDP cost
+(an upper bound, Dijkstra with step cost rate·ℓ + log D) and the shortest
+path length instead.
 
 The desirability of the chosen target b is z = W_b·(D − W_II)⁻¹ e_{node_b};
 the path follows the optimal controlled transition u*(x'|x) ∝ P(x'|x) z(x')
@@ -72,7 +82,7 @@ class LmdpBackend:
     name = "lmdp"
 
     def __init__(self, cost_rate_per_m: float, max_rate_nats: float = 60.0, solver: str = "auto",
-                 cg_rtol: float = 1e-12, cg_maxiter: int = 5000) -> None:
+                 cg_rtol: float = 1e-14, cg_maxiter: int = 5000, cg_max_rate_nats: float = 5.0) -> None:
         if cost_rate_per_m <= 0 or max_rate_nats <= 0:
             raise ValueError("cost_rate_per_m and max_rate_nats must be positive")
         if solver not in ("auto", "lu", "cg"):
@@ -82,12 +92,18 @@ class LmdpBackend:
         self.solver = solver
         self.cg_rtol = cg_rtol
         self.cg_maxiter = cg_maxiter
+        self.cg_max_rate_nats = float(cg_max_rate_nats)
+        self.last_info: dict = {}
+
+    def solver_kind(self, dim: int) -> str:
+        return self.solver if self.solver != "auto" else ("lu" if dim == 2 else "cg")
 
     def effective_rate(self, graph: FreeSpaceGraph) -> float:
-        """rate scaled so that rate × lattice diagonal ≤ max_rate_nats."""
+        """rate scaled so that rate × lattice diagonal ≤ max_rate_nats (CG: cg_max_rate_nats)."""
         lat = graph.lattice
         diag = float(np.linalg.norm([a[-1] - a[0] for a in lat.axes]))
-        return min(self.cost_rate_per_m, self.max_rate_nats / max(diag, 1e-9))
+        budget = self.cg_max_rate_nats if self.solver_kind(lat.dim) == "cg" else self.max_rate_nats
+        return min(self.cost_rate_per_m, budget / max(diag, 1e-9))
 
     def system(self, graph: FreeSpaceGraph, term_node: np.ndarray, rate: float):
         """(D − W_II) as CSR, and W of the terminal edges given their lengths."""
@@ -97,10 +113,13 @@ class LmdpBackend:
         return (sp.diags(deg) - w).tocsr(), w
 
     def _solver(self, mat: sp.csr_matrix, dim: int):
-        kind = self.solver if self.solver != "auto" else ("lu" if dim == 2 else "cg")
+        kind = self.solver_kind(dim)
         if kind == "lu":
-            lu = spla.splu(mat.tocsc())
-            return lu.solve
+            # SPD M-matrix: no pivoting needed; the triangular solves add positive terms only
+            # (no cancellation), so every entry of u is accurate relative to itself.
+            lu = spla.splu(mat.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+            return lu.solve, kind
         inv_diag = 1.0 / mat.diagonal()
         pre = spla.LinearOperator(mat.shape, matvec=lambda x: inv_diag * x, dtype=np.float64)
 
@@ -110,15 +129,16 @@ class LmdpBackend:
                 raise TravelError(f"conjugate gradients did not converge (info={info})")
             return x
 
-        return solve
+        return solve, kind
 
     def solve(self, graph: FreeSpaceGraph, start: int, term_node: np.ndarray,
               term_len_m: np.ndarray, reachable: np.ndarray) -> TravelSolution:
         """Costs to every candidate with ``reachable`` (others: inf)."""
+        self.last_info = {}
         rate = self.effective_rate(graph)
         tn = np.where(reachable, term_node, -1)
         mat, w = self.system(graph, tn, rate)
-        solve = self._solver(mat, graph.lattice.dim)
+        solve, kind = self._solver(mat, graph.lattice.dim)
         e0 = np.zeros(graph.n_nodes)
         e0[start] = 1.0
         u = solve(e0)
@@ -128,19 +148,36 @@ class LmdpBackend:
         cost = np.full(len(term_node), np.inf)
         travel = np.full(len(term_node), np.inf)
         ok = reachable & (tn >= 0)
-        un = u[tn[ok]]
-        good = un > 0
         idx = np.flatnonzero(ok)
-        cost[idx[good]] = -np.log(un[good]) + rate * term_len_m[idx[good]]
-        travel[idx[good]] = -du[tn[idx[good]]] / un[good] + term_len_m[idx[good]]
+        un = u[tn[idx]]
+        # CG is accurate only relative to max(u): below this floor an entry is noise
+        floor = 0.0 if kind == "lu" else 1e3 * self.cg_rtol * float(np.max(np.abs(u)))
+        good = un > floor
+        gi = idx[good]
+        cost[gi] = -np.log(un[good]) + rate * term_len_m[gi]
+        travel[gi] = -du[tn[gi]] / un[good] + term_len_m[gi]
+        far = idx[~good]
+        if len(far):
+            # beyond the iterative solver's dynamic range: the single best path's LMDP cost
+            # (an upper bound: rate·ℓ + log D per step) and its length
+            deg = mat.diagonal()
+            lc = graph.length_m.tocoo()
+            wt = rate * lc.data + 0.5 * (np.log(deg[lc.row]) + np.log(deg[lc.col]))
+            phi = csg.dijkstra(sp.csr_matrix((wt, (lc.row, lc.col)), shape=mat.shape), indices=start)
+            dist = csg.dijkstra(graph.length_m, indices=start)
+            bound = phi[tn[far]] + np.log(deg[tn[far]]) + rate * term_len_m[far]
+            cmax = float(np.max(cost[gi])) if len(gi) else 0.0
+            cost[far] = np.maximum(bound, cmax)
+            travel[far] = dist[tn[far]] + term_len_m[far]
+        self.last_info.update(solver=kind, rate_per_m=rate, n_beyond_range=int(len(far)))
         indptr, indices = w.indptr, w.indices
 
         def path(b: int) -> np.ndarray:
             target = tn[b]
             e = np.zeros(graph.n_nodes)
             e[target] = 1.0
-            z = solve(e) * np.exp(-rate * term_len_m[b])
             w_term = np.exp(-rate * term_len_m[b])
+            z = solve(e) * w_term
             nodes = [start]
             cur = start
             for _ in range(graph.n_nodes):
@@ -149,11 +186,11 @@ class LmdpBackend:
                 best = int(np.argmax(val)) if len(nb) else -1
                 if cur == target and (best < 0 or w_term >= val[best]):
                     return np.array(nodes)
-                if best < 0 or z[nb[best]] <= z[cur] and cur != target:
-                    break  # no ascent: numerical plateau
+                if best < 0 or (z[nb[best]] <= max(z[cur], 0.0) and cur != target):
+                    break  # no ascent: z below the solver's accuracy here
                 cur = int(nb[best])
                 nodes.append(cur)
-            # fall back to the shortest path (never expected; kept for robustness)
+            self.last_info["path_fallback"] = True
             _, pred = csg.dijkstra(graph.length_m, indices=start, return_predecessors=True)
             return _unwind(pred, start, target)
 
@@ -187,10 +224,10 @@ class DijkstraBackend:
 
 
 def make_backend(name: str, cost_rate_per_m: float, max_rate_nats: float, solver: str = "auto",
-                 cg_rtol: float = 1e-12):
+                 cg_rtol: float = 1e-14, cg_max_rate_nats: float = 5.0):
     """'lmdp' or 'dijkstra'."""
     if name == "lmdp":
-        return LmdpBackend(cost_rate_per_m, max_rate_nats, solver, cg_rtol)
+        return LmdpBackend(cost_rate_per_m, max_rate_nats, solver, cg_rtol, cg_max_rate_nats=cg_max_rate_nats)
     if name == "dijkstra":
         return DijkstraBackend()
     raise ValueError(f"backend must be 'lmdp' or 'dijkstra', got '{name}'")
