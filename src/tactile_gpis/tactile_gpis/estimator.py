@@ -53,7 +53,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "noise.free_space_var_m2": (1e-4, "variance of a free-space observation (m^2)"),
     "free_space.value_m": (0.01, "value of f observed at a free-space point (> 0, m)"),
     "use_normals": (True, "use contact normals as gradient observations"),
-    "prior.type": ("auto", "'auto' (circle/sphere at the workspace centre), 'given' (centre_m, radius_m), 'none'"),
+    "prior.type": ("auto", "'auto' (circle/sphere of 1/4 the smallest workspace extent at the workspace centre; 3D: resting on the table), 'given' (centre_m, radius_m), 'none'"),
     "prior.centre_m": ([0.5, 0.0, 0.06], "'given' prior: centre x, y, z (m); 2D uses x, y"),
     "prior.radius_m": (0.05, "'given' prior: radius (m)"),
     "candidates.max_count": (200, "maximum number of touch candidates (farthest-point subsample)"),
@@ -152,7 +152,10 @@ class ShapeEstimator:
             return zero_mean
         if kind == "auto":
             lo, hi = self.bounds_m
-            return sphere_mean(0.5 * (lo + hi), 0.25 * float((hi - lo).min()))
+            centre, radius = 0.5 * (lo + hi), 0.25 * float((hi - lo).min())
+            if self.dim == 3:  # the object stands on the table: the prior sphere rests on z = min z
+                centre[2] = lo[2] + radius
+            return sphere_mean(centre, radius)
         if kind == "given":
             c = np.asarray(p["prior.centre_m"], float)
             if c.shape != (3,):
