@@ -1,0 +1,98 @@
+"""Selection strategies: uncertainty = argmax σ², proposed limits, seeded random, sweep, info gain."""
+
+import numpy as np
+import pytest
+
+from tactile_planner.strategies import SelectionContext, StrategyParams, score_candidates
+
+
+def context(seed=0, m=30):
+    rng = np.random.default_rng(seed)
+    t = rng.uniform(0, 2 * np.pi, m)
+    xyz = np.stack([0.5 + 0.05 * np.cos(t), 0.05 * np.sin(t), np.full(m, 0.06)], axis=1)
+    var = 10 ** rng.uniform(-6, -3, m)
+    cost = rng.uniform(1.0, 50.0, m)
+    reach = np.ones(m, bool)
+    reach[:3] = False
+    cost[:3] = np.inf
+    return SelectionContext(xyz=xyz, variance_m2=var, cost=cost, time_s=cost / 10 + 1.5, reachable=reach,
+                            tip_xyz=np.array([0.4, 0.0, 0.06]))
+
+
+def pick(name, ctx, seed=0, **kw):
+    return int(np.argmax(score_candidates(name, ctx, StrategyParams(**kw), np.random.default_rng(seed))))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_uncertainty_is_argmax_variance_among_reachable(seed):
+    ctx = context(seed)
+    ctx.variance_m2[0] = 1.0  # unreachable, must not win
+    want = int(np.argmax(np.where(ctx.reachable, ctx.variance_m2, -1)))
+    assert pick("uncertainty", ctx) == want
+
+
+@pytest.mark.parametrize("form", ["normalized", "additive"])
+@pytest.mark.parametrize("seed", range(5))
+def test_proposed_limits(form, seed):
+    ctx = context(seed)
+    nearest = int(np.argmin(ctx.cost))
+    most_uncertain = pick("uncertainty", ctx)
+    assert pick("proposed", ctx, alpha=1e12, score_form=form) == most_uncertain
+    assert pick("proposed", ctx, alpha=1e-12, score_form=form) == nearest
+
+
+def test_normalized_form_is_scale_invariant():
+    ctx = context(3)
+    a = pick("proposed", ctx, alpha=1.0)
+    ctx.variance_m2 *= 1e-4  # the posterior shrank everywhere: the decision must not change
+    ctx.cost *= 7.0
+    assert pick("proposed", ctx, alpha=1.0) == a
+
+
+def test_ratio_form_is_variance_per_second():
+    ctx = context(4)
+    ok = ctx.reachable
+    want = int(np.argmax(np.where(ok, ctx.variance_m2 / ctx.time_s, -np.inf)))
+    assert pick("proposed", ctx, score_form="ratio") == want
+
+
+def test_random_is_seeded_and_uniform_over_reachable():
+    ctx = context(5)
+    a = [pick("random", ctx, seed=s) for s in range(200)]
+    assert a == [pick("random", ctx, seed=s) for s in range(200)]
+    assert min(a) >= 3  # never an unreachable one
+    assert len(set(a)) > 20
+
+
+def test_sequential_sweeps_counter_clockwise_from_the_tip():
+    m = 12
+    t = np.arange(m) * 2 * np.pi / m
+    xyz = np.stack([0.5 + 0.05 * np.cos(t), 0.05 * np.sin(t), np.zeros(m)], axis=1)
+    ctx = SelectionContext(xyz=xyz, variance_m2=np.ones(m), cost=np.ones(m), time_s=np.ones(m),
+                           reachable=np.ones(m, bool), tip_xyz=np.array([0.6, 0.001, 0.0]))  # angle ≈ 0
+    order = []
+    for _ in range(m):
+        i = pick("sequential", ctx, sequential_step_rad=0.1)
+        order.append(i)
+        ctx.tip_xyz = xyz[i] * 1.0
+    assert order == list(range(1, m)) + [0]
+
+
+def test_info_gain_matches_the_written_out_formula():
+    ctx = context(6, m=10)
+    ell, noise = 0.03, 1e-6
+    want = np.full(10, -np.inf)
+    for c in range(10):  # independent: explicit sums
+        if not ctx.reachable[c]:
+            continue
+        s = sum(np.exp(-np.sum((ctx.xyz[m] - ctx.xyz[c]) ** 2) / ell**2) * ctx.variance_m2[m] for m in range(10))
+        want[c] = ctx.variance_m2[c] / (ctx.variance_m2[c] + noise) * s / ctx.time_s[c]
+    got = score_candidates("info_gain", ctx, StrategyParams(info_gain_length_scale_m=ell,
+                                                            info_gain_noise_var_m2=noise), np.random.default_rng(0))
+    np.testing.assert_allclose(got[3:], want[3:], rtol=1e-12)
+    assert np.all(np.isneginf(got[:3]))
+
+
+def test_unknown_strategy_is_a_clear_error():
+    with pytest.raises(ValueError, match="strategy must be one of"):
+        score_candidates("nearest", context(), StrategyParams(), np.random.default_rng(0))
