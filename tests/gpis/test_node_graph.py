@@ -87,3 +87,32 @@ def test_node_maps_contacts(ros_graph):
     after = from_pointcloud2(maps[-1])
     np.testing.assert_allclose(after["variance"][: 64 * 64], prior_arr["variance"][: 64 * 64])
     assert ros_graph.stop_all() == {"gpis": 0}
+
+
+def test_node_3d_map_and_mesh(ros_graph):
+    ros_graph.start("gpis3d", ["gpis_estimator", "--ros-args", "-p", "mode:=3d",
+                               "-p", "lattice.points_per_axis_3d:=16"])
+    maps = ros_graph.collect(topics.VARIANCE_MAP, PointCloud2, MAP_READER)
+    from visualization_msgs.msg import Marker
+
+    markers = ros_graph.collect(topics.SURFACE, Marker, MAP_READER)
+    ros_graph.wait_for(lambda: maps and markers, 30, "the prior map and mesh")
+    pub = ros_graph.node.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
+    ros_graph.wait_for(lambda: pub.get_subscription_count() > 0, 20, "the estimator's subscription")
+    top = contact(0.0, z=0.12)
+    top["x"], top["y"] = 0.5, 0.0
+    top["normal_x"], top["normal_y"], top["normal_z"] = 0.0, 0.0, 1.0
+    pub.publish(to_pointcloud2(top, "world", stamp_of(5)))
+    ros_graph.wait_for(lambda: any(m.header.stamp.sec == 5 for m in maps), 30, "the map of the contact")
+    arr = from_pointcloud2(maps[-1])
+    assert (arr["kind"] == KIND_LATTICE).sum() == 16**3
+    cand = arr[arr["kind"] == KIND_CANDIDATE]
+    assert len(cand) > 0 and (cand["z"] > 0.005).all()
+    lat = arr[arr["kind"] == KIND_LATTICE]
+    near = np.argmin((lat["x"] - 0.5) ** 2 + lat["y"] ** 2 + (lat["z"] - 0.12) ** 2)
+    prior = from_pointcloud2(maps[0])
+    assert lat["variance"][near] < 0.2 * prior["variance"][near]
+    ros_graph.wait_for(lambda: any(m.header.stamp.sec == 5 for m in markers), 20, "the mesh of the contact")
+    mesh = [m for m in markers if m.header.stamp.sec == 5][-1]
+    assert mesh.type == Marker.TRIANGLE_LIST and len(mesh.points) % 3 == 0 and len(mesh.points) > 0
+    assert ros_graph.stop_all() == {"gpis3d": 0}
