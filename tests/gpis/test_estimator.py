@@ -121,3 +121,15 @@ def test_candidate_variance_and_mean_match_direct_prediction():
     mean_l, var_l = est.predict(np.stack([lat["x"], lat["y"]], 1))
     np.testing.assert_allclose(lat["mean"], mean_l, atol=1e-10)
     np.testing.assert_allclose(lat["variance"], var_l, atol=1e-10)
+
+
+def test_per_contact_noise_down_weights_a_contact():
+    p = [0.5, 0.06, 0.06]
+    sure, unsure = small_2d(), small_2d()
+    assert sure.add_observation(p, None, 1)[0]
+    assert unsure.add_observation(p, None, 1, value_var_m2=1e-3)[0]
+    assert abs(sure.predict(np.array([p[:2]]))[0][0]) < 1e-4
+    _, var_sure = sure.predict(np.array([p[:2]]))
+    _, var_unsure = unsure.predict(np.array([p[:2]]))
+    assert var_unsure[0] > 100 * var_sure[0]
+    assert not unsure.add_observation([0.4, 0.0, 0.06], None, 1, value_var_m2=-1.0)[0]

@@ -172,18 +172,29 @@ class ShapeEstimator:
         self.n_rejected = 0
         self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
 
-    def add_observation(self, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], label: int) -> tuple[bool, str]:
+    def add_observation(
+        self,
+        point_xyz: np.ndarray,
+        normal_xyz: Optional[np.ndarray],
+        label: int,
+        value_var_m2: Optional[float] = None,
+    ) -> tuple[bool, str]:
         """Add one contact (label 1) or free-space point (label 0), world frame.
+
+        Args:
+            value_var_m2: noise variance of this observation's value (default: the
+                ``noise.contact_var_m2`` / ``noise.free_space_var_m2`` parameter), so
+                that an uncertain contact can be down-weighted.
 
         Returns:
             (accepted, reason): reason says why it was rejected ('' if accepted).
         """
-        ok, reason = self._add(point_xyz, normal_xyz, label)
+        ok, reason = self._add(point_xyz, normal_xyz, label, value_var_m2)
         if not ok:
             self.n_rejected += 1
         return ok, reason
 
-    def _add(self, point_xyz, normal_xyz, label) -> tuple[bool, str]:
+    def _add(self, point_xyz, normal_xyz, label, value_var_m2) -> tuple[bool, str]:
         pt = np.asarray(point_xyz, float).ravel()
         if pt.shape != (3,):
             return False, f"point must have 3 coordinates, got {pt.shape[0]}"
@@ -194,16 +205,19 @@ class ShapeEstimator:
             return False, f"point {np.round(x, 4).tolist()} outside the workspace"
         if label not in (LABEL_CONTACT, LABEL_FREE_SPACE):
             return False, f"unknown label {label} (1 contact, 0 free space)"
+        if value_var_m2 is not None and not (np.isfinite(value_var_m2) and value_var_m2 >= 0):
+            return False, f"noise variance {value_var_m2} is not a finite number >= 0"
         if len(self._points):
             d = float(np.sqrt(((self._points - x) ** 2).sum(1).min()))
             if d < self.duplicate_distance_m:
                 return False, f"duplicate: {d * 1000:.2f} mm from an earlier observation"
         try:
             if label == LABEL_FREE_SPACE:
-                self.gp.add_observation(x, self.free_value, self.free_var)
+                var = self.free_var if value_var_m2 is None else float(value_var_m2)
+                self.gp.add_observation(x, self.free_value, var)
             else:
-                n = self._unit_normal(normal_xyz)
-                self.gp.add_observation(x, 0.0, self.contact_var, n, self.normal_var)
+                var = self.contact_var if value_var_m2 is None else float(value_var_m2)
+                self.gp.add_observation(x, 0.0, var, self._unit_normal(normal_xyz), self.normal_var)
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
         self._points = np.vstack([self._points, x])
