@@ -1,0 +1,126 @@
+"""Planner benchmark: one decision in 2D (128²) and 3D (48³ shell), LMDP vs per-candidate solves vs Dijkstra.
+
+    python -m tactile_planner.bench [--json FILE] [--repeat N]
+
+A decision = parse the map + free-space graph + travel costs to every
+candidate + strategy + path (``TouchPlanner.plan``), median of ``--repeat``
+runs. "Per-candidate" solves the same first-exit problem once per candidate
+(assemble + factorise/solve per candidate, as without the one-solve trick);
+"per-candidate (shared factor)" reuses one factorisation (2D) — the most
+favourable per-candidate baseline. All figures come from one run, so their
+ratios are meaningful even on a loaded machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from .planner import TouchPlanner
+from .synthetic import sphere_map
+
+CASES = (
+    dict(dim=2, n=128, params={"mode": "2d"}, tip=(0.38, -0.12, 0.06)),
+    dict(dim=3, n=48, params={"mode": "3d", "shell_m": 0.03}, tip=(0.45, -0.06, 0.14)),
+)
+
+
+def _median_ms(fn, repeat: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append((time.perf_counter() - t0) * 1e3)
+    return float(np.median(times)), out
+
+
+def per_candidate_costs(planner: TouchPlanner, map_array, tip, shared_factor: bool) -> np.ndarray:
+    """Cost to each candidate from its own first-exit solve (reads z_b at the start node)."""
+    import scipy.sparse.csgraph as csg
+
+    from .graph import build_free_graph
+    from .maps import parse_variance_map
+
+    p = planner.params
+    lat, cands = parse_variance_map(map_array)
+    graph = build_free_graph(lat, p["margin_m"], p["shell_m"], p["min_tip_z_m"])
+    normal = cands.normal / np.linalg.norm(cands.normal, axis=1)[:, None]
+    pre = cands.xyz + (p["standoff_m"] + p["tip_radius_m"]) * normal
+    if lat.dim == 2:
+        pre[:, 2] = lat.plane_z_m
+    tip = np.asarray(tip, float)
+    start = graph.nearest_node(tip)
+    tn, tl = graph.attach(pre, int(p["attach_reach"]))
+    _, comp = csg.connected_components(graph.length_m, directed=False)
+    reach = (tn >= 0) & (comp[np.maximum(tn, 0)] == comp[start])
+    tn = np.where(reach, tn, -1)
+    be = planner.backend
+    rate = be.effective_rate(graph)
+    out = np.full(len(tn), np.inf)
+    solve = None
+    for b in np.flatnonzero(reach):
+        if solve is None or not shared_factor:
+            mat, _ = be.system(graph, tn, rate)
+            solve, _ = be._solver(mat, lat.dim)
+        rhs = np.zeros(graph.n_nodes)
+        rhs[tn[b]] = np.exp(-rate * tl[b])
+        out[b] = -np.log(solve(rhs)[start])
+    return out
+
+
+def run(repeat: int = 3) -> list[dict]:
+    records = []
+    for case in CASES:
+        m = sphere_map(case["n"], case["dim"], n_candidates=64)
+        tip = np.array(case["tip"])
+        lm = TouchPlanner.from_params(dict(case["params"], backend="lmdp"), seed=0)
+        dj = TouchPlanner.from_params(dict(case["params"], backend="dijkstra"), seed=0)
+        lmdp_ms, res = _median_ms(lambda: lm.plan(m, tip), repeat)
+        dijkstra_ms, res_d = _median_ms(lambda: dj.plan(m, tip), repeat)
+        t0 = time.perf_counter()
+        per = per_candidate_costs(lm, m, tip, shared_factor=False)
+        per_ms = (time.perf_counter() - t0) * 1e3
+        t0 = time.perf_counter()
+        per_shared = per_candidate_costs(lm, m, tip, shared_factor=True)
+        per_shared_ms = (time.perf_counter() - t0) * 1e3
+        ok = np.isfinite(per) & np.isfinite(res.travel_costs)
+        rec = {
+            "dim": case["dim"], "lattice": f"{case['n']}^{case['dim']}", "nodes": res.n_nodes,
+            "candidates": res.n_candidates, "status": res.status,
+            "solver": res.backend_info.get("solver"),
+            "lmdp_ms": round(lmdp_ms, 2), "per_candidate_ms": round(per_ms, 1),
+            "per_candidate_shared_factor_ms": round(per_shared_ms, 1),
+            "dijkstra_ms": round(dijkstra_ms, 2),
+            "ratio_vs_per_candidate": round(per_ms / lmdp_ms, 1),
+            "ratio_vs_per_candidate_shared_factor": round(per_shared_ms / lmdp_ms, 1),
+            "ratio_vs_dijkstra": round(lmdp_ms / dijkstra_ms, 2),
+            "max_cost_diff_vs_per_candidate_nats": float(np.max(np.abs(per[ok] - res.travel_costs[ok]))),
+            "same_choice_as_dijkstra": bool(res.index == res_d.index),
+        }
+        records.append(rec)
+        goal = 20.0 if case["dim"] == 2 else 200.0
+        print(f"{rec['lattice']:>6} {rec['nodes']:6d} nodes {rec['candidates']:3d} candidates | "
+              f"lmdp {lmdp_ms:7.1f} ms (goal < {goal:.0f}) | per-candidate {per_ms:8.1f} ms "
+              f"(×{rec['ratio_vs_per_candidate']}; shared factor {per_shared_ms:.1f} ms, "
+              f"×{rec['ratio_vs_per_candidate_shared_factor']}) | dijkstra {dijkstra_ms:6.1f} ms "
+              f"(lmdp/dijkstra ×{rec['ratio_vs_dijkstra']}) | max |ΔC| {rec['max_cost_diff_vs_per_candidate_nats']:.1e} nats")
+    return records
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", help="also write the records to this file")
+    ap.add_argument("--repeat", type=int, default=3, help="decisions per timing (median)")
+    args = ap.parse_args(argv)
+    records = run(args.repeat)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(records, fh, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
