@@ -1,7 +1,8 @@
 """Graph: sim_sensor_device (pty) + tactile_sensor processes; fingertip poses from the test.
 
-The hidden object is the built-in 2D 'circle' (radius 4 cm, centre (0.50, 0.00));
-the truth is computed here from that geometry.
+Hidden objects: the built-in 2D 'circle' (radius 4 cm, centre (0.50, 0.00)) and
+3D 'sphere' (radius 5 cm, centre (0.50, 0.00, 0.05)); the truth is computed here
+from that geometry.
 """
 
 import math
@@ -29,11 +30,15 @@ class PoseScript:
 
     def __init__(self, graph, start_xy, direction_xy):
         self.graph = graph
-        self.start = np.asarray(start_xy, float)
-        self.dir = np.asarray(direction_xy, float) / np.linalg.norm(direction_xy)
+        self.start = np.r_[np.asarray(start_xy, float), Z_M][:3]
+        d = np.r_[np.asarray(direction_xy, float), 0.0][:3]
+        self.dir = d / np.linalg.norm(d)
         self.t_go = None
         self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
         graph.node.create_timer(0.01, self.publish)
+
+    def wait_for_subscribers(self):
+        self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2, 20, "pose subscribers")
 
     def go(self):
         self.t_go = self.graph.node.get_clock().now().nanoseconds * 1e-9
@@ -42,20 +47,21 @@ class PoseScript:
         now = self.graph.node.get_clock().now()
         t = now.nanoseconds * 1e-9
         travel = 0.0 if self.t_go is None else min(SPEED_MPS * (t - self.t_go), 0.03)
-        xy = self.start + travel * self.dir
+        xyz = self.start + travel * self.dir
         msg = PoseStamped()
         msg.header.stamp = now.to_msg()
         msg.header.frame_id = topics.WORLD_FRAME
-        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = float(xy[0]), float(xy[1]), Z_M
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in xyz)
         msg.pose.orientation.w = 1.0
         self.pub.publish(msg)
 
 
-def start_nodes(graph, link, faults=()):
+def start_nodes(graph, link, faults=(), mode="2d"):
+    obj, layout = ("circle", "taxels_ring.yaml") if mode == "2d" else ("sphere", "taxels_hemisphere.yaml")
     graph.start("device", ["sim_sensor_device", "--ros-args", "-p", f"link_path:={link}",
-                           "-p", "object:=circle", "-p", "mode:=2d", "-p", "seed:=3", *faults])
+                           "-p", f"object:={obj}", "-p", f"mode:={mode}", "-p", "seed:=3", *faults])
     graph.start("driver", ["tactile_sensor", "--ros-args", "-p", f"port:={link}",
-                           "-p", "layout_file:=taxels_ring.yaml", "-p", "reconnect_min_s:=0.05",
+                           "-p", f"layout_file:={layout}", "-p", "reconnect_min_s:=0.05",
                            "-p", "diagnostics_period_s:=0.25"])
 
 
@@ -82,14 +88,17 @@ def test_contact_from_simulated_device_through_the_driver(ros_graph, tmp_path):
     link = tmp_path / "sensor"
     diags = ros_graph.collect(topics.DIAGNOSTICS, DiagnosticArray, 10)
     contacts = ros_graph.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
-    direction = np.array([math.cos(2.5), math.sin(2.5)])  # approach from the upper left
+    direction = np.array([math.cos(2.5), math.sin(2.5)])  # towards the upper left: touches the lower right
     start = CENTRE - direction * (RADIUS_M + TIP_RADIUS_M + 0.004)
     script = PoseScript(ros_graph, start, direction)
     start_nodes(ros_graph, link)
     ros_graph.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 20, "calibration")
     assert not contacts
+    script.wait_for_subscribers()  # the device and the driver both hear the poses
     script.go()
     ros_graph.wait_for(lambda: contacts, 10, "a contact")
+    ros_graph.wait_for(lambda: diags and int(diag_values(diags[-1])["contacts"]) >= 1, 5, "diagnostics")
+    print("driver diagnostics:", diag_values(diags[-1]))
     check_contact(contacts[0], direction)
     codes = ros_graph.stop_all()
     assert codes == {"driver": 0, "device": 0}
@@ -120,6 +129,29 @@ def test_faults_are_counted_and_give_no_false_contact(ros_graph, tmp_path):
     assert not contacts, "faults must never produce a contact"
     assert any(m.status[0].level != b"\x00" for m in diags), "faults raise the diagnostics level"
     # the driver still senses correctly after all that
+    script.wait_for_subscribers()  # the device and the driver both hear the poses
     script.go()
     ros_graph.wait_for(lambda: contacts, 10, "a contact after the faults")
     check_contact(contacts[0], direction)
+
+
+def test_3d_contact_on_a_sphere_with_the_hemispherical_tip(ros_graph, tmp_path):
+    centre, radius = np.array([0.50, 0.0, 0.05]), 0.05
+    link = tmp_path / "sensor"
+    diags = ros_graph.collect(topics.DIAGNOSTICS, DiagnosticArray, 10)
+    contacts = ros_graph.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
+    direction = np.array([0.4, 0.2, -1.0]) / np.linalg.norm([0.4, 0.2, -1.0])  # down, onto the cap
+    script = PoseScript(ros_graph, [0.0, 0.0], [1.0, 0.0])
+    script.start = centre - direction * (radius + TIP_RADIUS_M + 0.004)
+    script.dir = direction
+    start_nodes(ros_graph, link, mode="3d")
+    ros_graph.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 20, "calibration")
+    script.wait_for_subscribers()  # the device and the driver both hear the poses
+    script.go()
+    ros_graph.wait_for(lambda: contacts, 10, "a contact")
+    pts = from_pointcloud2(contacts[0])
+    p, n = fields.xyz(pts)[0], fields.normals(pts)[0]
+    radial = (p - centre) / np.linalg.norm(p - centre)
+    assert abs(np.linalg.norm(p - centre) - radius) < 0.002, f"contact {p} is off the sphere"
+    assert math.degrees(math.acos(np.clip(n @ radial, -1, 1))) < 10.0, f"normal {n} vs radial {radial}"
+    assert radial @ direction < -0.9

@@ -1,10 +1,12 @@
 """Node ``sim_sensor_device``: the simulated tactile sensor alone (no arm), for tests and bench setups.
 
-Holds a hidden object (``tactile_sim.objects.make_object``), follows the
-fingertip pose on /arm/fingertip_pose, and steps a
-:class:`tactile_sim.sensor_device.SimulatedSensorDevice` on a timer of the
-node clock (simulated time with ``use_sim_time``), so the driver node reads
-frames from the pty behind ``link_path``.
+Holds a hidden object (``tactile_sim.objects.make_object``) and serves a
+:class:`tactile_sim.sensor_device.SimulatedSensorDevice` on the pty behind
+``link_path``. Each pose on /arm/fingertip_pose moves the fingertip and
+writes the frames due up to the pose's stamp, so every frame shows the world
+at its own time even when poses arrive late. Without poses for
+``pose_timeout_s``, a timer on the node clock (simulated time with
+``use_sim_time``) keeps the device streaming at the last pose.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ PARAMS = {
     "link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
     "layout_file": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "frame_rate_hz": (200.0, "frame rate in node-clock time"),
-    "step_period_s": (0.005, "timer period that writes the due frames (node clock)"),
+    "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)"),
+    "pose_timeout_s": (0.1, "without a pose this long, the timer drives the device"),
     "seed": (0, "seed of the noise, baselines and faults"),
     "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
     "mode": ("2d", "2d (prism contour) or 3d"),
@@ -64,6 +67,8 @@ class SimSensorDeviceNode(Node):
                                   counts_per_newton=p.model_counts_per_newton, noise_counts=p.model_noise_counts)
         self.device = SimulatedSensorDevice(obj, layout, p.link_path, p.frame_rate_hz, p.seed, faults, model)
         self.device.open()
+        self.pose_timeout_s = p.pose_timeout_s
+        self._last_pose_s = None
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)
         self.create_timer(p.step_period_s, self._step)
         self.get_logger().info(f"sim_sensor_device: object '{p.object}' ({p.mode}), {layout.n_taxels} taxels "
@@ -71,13 +76,19 @@ class SimSensorDeviceNode(Node):
 
     def _on_pose(self, msg: PoseStamped) -> None:
         pp, q = msg.pose.position, msg.pose.orientation
+        t_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         try:
             self.device.set_pose([pp.x, pp.y, pp.z], quat_to_matrix([q.x, q.y, q.z, q.w]))
-        except (ValueError, ZeroDivisionError, FloatingPointError) as exc:
+        except ValueError as exc:
             self.get_logger().warn(f"ignored fingertip pose: {exc}", throttle_duration_sec=5.0)
+            return
+        self._last_pose_s = t_s
+        self.device.step(t_s)
 
     def _step(self) -> None:
-        self.device.step(self.get_clock().now().nanoseconds * 1e-9)
+        now_s = self.get_clock().now().nanoseconds * 1e-9
+        if self._last_pose_s is None or now_s - self._last_pose_s > self.pose_timeout_s:
+            self.device.step(now_s)
 
     def close(self) -> None:
         self.device.close()
