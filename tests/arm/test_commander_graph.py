@@ -22,7 +22,7 @@ ROOT = FsPath(__file__).resolve().parents[2]
 SIM = ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
        "-p", "sensor_enabled:=false", "-p", "real_time_factor:=4.0"]
 ARM = ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
-       "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1"]
+       "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "watchdog_timeout_s:=2.0"]
 APPROACH_M = 0.01 + 0.01 + 0.02  # standoff + tip radius + max depth (config defaults)
 
 

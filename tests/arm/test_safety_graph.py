@@ -75,7 +75,7 @@ def test_estop_during_approach_stops_the_rig_within_a_control_period(ros_graph):
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     rtf = 2.0
     g.start("sim", ["sim_rig", "--ros-args", "-p", "sensor_enabled:=false", "-p", f"real_time_factor:={rtf}"])
-    g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "use_sim_time:=true"])
+    g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "use_sim_time:=true", "-p", "watchdog_timeout_s:=2.0"])
     estop = g.node.create_publisher(Bool, topics.ESTOP, qos.LATCHED)
     TouchPublisher(g).send(7)
     g.wait_for(lambda: len(sent) >= 2, 40, "the approach trajectory")  # path, then approach
