@@ -177,3 +177,17 @@ def test_pending_onset_is_refused_when_its_pose_never_comes():
     out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames)]
     assert sum(len(o.contacts) for o in out) == 0
     assert drv.stats.refused_no_pose >= 2  # expired, re-armed, expired again
+
+
+def test_frames_queued_during_a_disconnect_are_stale_after_the_reconnect():
+    layout = ring_layout()
+    drv = SensorDriver(layout, config=DriverConfig(max_frame_age_s=0.1))
+    values = np.full(layout.n_taxels, 1000, np.uint16)
+    for k in range(50):  # 200 Hz, 1 ms transport delay: offset learnt
+        drv.feed(encode_frame(k, int((5.0 + 0.005 * k) * 1e6), values), 5.0 + 0.005 * k + 0.001)
+    drv.device_reset()
+    # after the reconnect the first bytes are frames written 0.3 s ago
+    out = drv.feed(b"".join(encode_frame(100 + j, int((5.5 + 0.005 * j) * 1e6), values) for j in range(5)), 5.82)
+    assert out.frames == [] and drv.stats.stale_frames == 5
+    out = drv.feed(encode_frame(200, int(5.83 * 1e6), values), 5.831)
+    assert len(out.frames) == 1 and out.frames[0][0] == pytest.approx(5.831, abs=1e-6)

@@ -76,9 +76,13 @@ class SensorDriver:
         self._pending: list = []  # (stamp_s, ContactEstimate) waiting for a pose
 
     def device_reset(self) -> None:
-        """After a reconnect: drop partial bytes, the sequence and the clock offset."""
+        """After a reconnect: drop partial bytes and the sequence.
+
+        The clock offset is kept: a device that kept running keeps its clock,
+        so frames queued during the outage are recognised as stale; a device
+        that restarted shows a backwards time jump and resets the estimate.
+        """
         self.decoder.reset()
-        self.clock.reset()
 
     def add_pose(self, t_s: float, position_m: np.ndarray, q_xyzw: np.ndarray) -> Optional[list]:
         """Buffer a fingertip pose; the pending contacts it completes (None: pose rejected)."""
