@@ -43,6 +43,7 @@ def test_paths_stay_out_of_the_margin_and_end_at_the_pretouch_point(backend, str
     # analytic SDF along the whole polyline; 1e-4 m: bilinear interpolation error of the circle SDF
     assert circle_sdf(sample_polyline(res.path_xyz)).min() >= params["margin_m"] - 1e-4
     assert res.decision_ms > 0 and len(res.scores) == len(res.travel_costs) == 64
+    assert not res.backend_info.get("path_fallback")  # greedy on u* reached the target
 
 
 def test_same_seed_same_decisions():

@@ -132,3 +132,18 @@ def test_no_underflow_3d_shell_cg_matches_lu():
     c_lu = lu.solve(graph, start, far, np.zeros(3), reach).cost
     assert np.all(np.isfinite(c_cg))
     np.testing.assert_allclose(c_cg, c_lu, atol=1e-4)
+
+
+@pytest.mark.parametrize("backend", [LmdpBackend(300.0, solver="lu"), LmdpBackend(300.0, solver="cg"), DijkstraBackend()])
+def test_lattice_paths_run_along_edges_from_start_to_the_pretouch_node(backend):
+    graph = build_free_graph(lattice_2d(32, True), margin_m=0.01)
+    nodes, lens = some_terminals(graph, 10, seed=3)
+    start = graph.nearest_node(np.array([0.0, 0.15, 0.06]))
+    sol = backend.solve(graph, start, nodes, lens, np.ones(10, bool))
+    adj = graph.length_m.toarray() > 0
+    for b in range(10):
+        path = sol.path_nodes(b)
+        assert path[0] == start and path[-1] == nodes[b]
+        assert np.all(adj[path[:-1], path[1:]])  # every step is a free-graph edge
+        assert len(set(path.tolist())) == len(path)  # no loops
+    assert not getattr(backend, "last_info", {}).get("path_fallback")

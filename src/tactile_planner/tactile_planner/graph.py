@@ -2,9 +2,9 @@
 
 A lattice node is free when the GP mean (≈ signed distance, metres) is at least
 ``margin_m`` (optionally also P(inside) = Φ(−μ/σ) ≤ ``p_inside_max``), in 3D
-when its height is at least ``min_z_m`` and, with ``shell_m > 0``, when μ ≤
-margin + shell (a shell around the surface: the graph grows with area, not
-volume). Edges join 8 (2D) / 26 (3D) neighbours and exist only when every
+when its height is at least ``min_z_m``, and with ``shell_m > 0`` when μ ≤
+margin + shell (a band/shell around the surface: the graph grows with the
+surface, not the workspace). Edges join 8 (2D) / 26 (3D) neighbours and exist only when every
 lattice node of the box spanned by the edge is free, so the multilinear
 interpolation of μ along an edge never drops below the margin.
 """
@@ -124,7 +124,7 @@ def build_free_graph(
     Args:
         lattice: estimator lattice with the GP mean/variance.
         margin_m: minimum μ (≈ distance of the tip centre from the estimated surface).
-        shell_m: 3D only: keep nodes with μ ≤ margin + shell (0 = all free space).
+        shell_m: keep only nodes with μ ≤ margin + shell (0 = all free space).
         min_z_m: 3D only: lowest allowed node height (table + margin + tip radius).
         p_inside_max: if set, also drop nodes with Φ(−μ/σ) above it.
     """
@@ -135,8 +135,8 @@ def build_free_graph(
         free &= ndtr(-mu / sigma) <= p_inside_max
     if lattice.dim == 3:
         free &= (lattice.axes[2] >= min_z_m)[None, None, :]
-        if shell_m > 0:
-            free &= mu <= margin_m + shell_m
+    if shell_m > 0:
+        free &= mu <= margin_m + shell_m
     shape = lattice.shape
     d = lattice.dim
     node_of_grid = np.full(free.size, -1, dtype=np.int64)

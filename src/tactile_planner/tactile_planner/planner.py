@@ -39,11 +39,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "backend": ("lmdp", "travel costs: 'lmdp' (one linear solve) or 'dijkstra'"),
     "solver": ("auto", "LMDP linear solver: 'auto' (2D LU, 3D CG), 'lu' or 'cg'"),
     "cost_rate_per_m": (200.0, "LMDP state cost per metre of travel (nats/m); larger = closer to shortest paths"),
-    "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × lattice diagonal ≤ this (no underflow)"),
-    "cg_max_rate_nats": (5.0, "numerics with CG (3D): rate × lattice diagonal ≤ this, so every cost stays within CG's accuracy"),
+    "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × graph bounding-box diagonal ≤ this (no underflow)"),
+    "cg_max_rate_nats": (3.0, "numerics with CG (3D): rate × graph bounding-box diagonal ≤ this, so every cost stays within CG's accuracy"),
     "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients"),
     "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)"),
-    "shell_m": (0.0, "3D: keep only nodes with mean ≤ margin + shell (0 = all free space)"),
+    "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with mean ≤ margin + shell (0 = all free space)"),
     "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths"),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)"),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
@@ -83,6 +83,7 @@ class PlanResult:
     travel_costs: np.ndarray = field(default_factory=lambda: np.zeros(0))
     travel_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
     time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    path_length_m: float = float("nan")
     decision_ms: float = 0.0
     start_snapped: bool = False
     n_candidates: int = 0
@@ -196,8 +197,9 @@ class TouchPlanner:
         if graph.n_nodes == 0:
             return PlanResult("no_free_space", "no lattice node is outside the safety margin", **base)
         start = graph.nearest_node(tip)
-        snapped = bool(np.linalg.norm(graph.xyz[start] - tip) > 0.5 * float(np.max(lattice.spacing_m)) * np.sqrt(dim)
-                       or not graph.segments_free(tip[None], graph.xyz[start][None])[0])
+        # outside the band/shell the tip joins the graph by a straight segment; it is
+        # "snapped" when it is inside the margin or that segment is not free
+        snapped = not bool(graph.segments_free(tip[None], graph.xyz[start][None])[0])
         term_node, term_len = graph.attach(pretouch, int(p["attach_reach"]))
         _, comp = csg.connected_components(graph.length_m, directed=False)
         reachable = valid & ~excluded & (term_node >= 0)
@@ -206,13 +208,15 @@ class TouchPlanner:
             ends_ok = graph.segments_free(graph.xyz[np.maximum(term_node, 0)], pretouch)
             reachable &= ends_ok
         base.update(start_snapped=snapped)
-        snap_msg = " (start inside the margin/off the graph: snapped to the nearest free node)" if snapped else ""
+        snap_msg = " (tip inside the margin or blocked: snapped to the nearest free node)" if snapped else ""
         if not reachable.any():
             return PlanResult("all_unreachable",
                               f"all {m} candidates are unreachable or excluded "
                               f"({int(excluded.sum())} excluded, {int((~valid).sum())} invalid){snap_msg}",
                               n_unreachable=int(m - excluded.sum()), **base)
-        sol = self.backend.solve(graph, start, term_node, term_len, reachable)
+        # the motion-model time (travel length) is needed by the time-based scores only
+        needs_time = p["strategy"] == "info_gain" or (p["strategy"] == "proposed" and p["score_form"] == "ratio")
+        sol = self.backend.solve(graph, start, term_node, term_len, reachable, want_travel_m=needs_time)
         reachable &= np.isfinite(sol.cost)
         if not reachable.any():
             return PlanResult("all_unreachable", f"no candidate has a finite travel cost{snap_msg}",
@@ -240,7 +244,7 @@ class TouchPlanner:
             f"candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
             f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}{extra}",
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
-            path_xyz=pts, scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
+            path_xyz=pts, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
             n_unreachable=n_unreach, backend_info=info, **base,
         )
 

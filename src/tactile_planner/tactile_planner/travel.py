@@ -17,14 +17,14 @@ The expected length of the optimal controlled paths is ∂C_b/∂rate (one more
 solve with the same matrix); it is reported as ``travel_m``.
 
 Numerics: the rate is scaled down (``rate_eff``) so that rate_eff × lattice
-diagonal ≤ ``max_rate_nats``; with the KL term (≤ log D per step) the
+diagonal of the graph's bounding box ≤ ``max_rate_nats``; with the KL term (≤ log D per step) the
 largest cost across a 128² (2D) or 48³ (3D) lattice then stays far above
 float underflow (e^−708), and costs are taken as −log of positive numbers.
 The sparse LU of this M-matrix needs no pivoting and its triangular solves
 add positive terms only, so every entry of u is accurate relative to itself.
 Conjugate gradients (3D default: fast) is accurate only relative to max(u),
-so with CG the rate budget is ``cg_max_rate_nats`` (default 5: costs then
-span ~8–22 nats on a 48³ shell and CG matches LU to 1e-6 nats);
+so with CG the rate budget is ``cg_max_rate_nats`` (default 3, rtol 1e-14:
+on a 48³ shell every cost, antipode included, matches LU to < 1e-4 nats);
 candidates whose u falls below 1e3·rtol·max(u) are reported
 (``last_info['n_beyond_range']``) and get the single-best-path LMDP cost
 (an upper bound, Dijkstra with step cost rate·ℓ + log D) and the shortest
@@ -82,7 +82,7 @@ class LmdpBackend:
     name = "lmdp"
 
     def __init__(self, cost_rate_per_m: float, max_rate_nats: float = 60.0, solver: str = "auto",
-                 cg_rtol: float = 1e-14, cg_maxiter: int = 5000, cg_max_rate_nats: float = 5.0) -> None:
+                 cg_rtol: float = 1e-14, cg_maxiter: int = 5000, cg_max_rate_nats: float = 3.0) -> None:
         if cost_rate_per_m <= 0 or max_rate_nats <= 0:
             raise ValueError("cost_rate_per_m and max_rate_nats must be positive")
         if solver not in ("auto", "lu", "cg"):
@@ -99,10 +99,10 @@ class LmdpBackend:
         return self.solver if self.solver != "auto" else ("lu" if dim == 2 else "cg")
 
     def effective_rate(self, graph: FreeSpaceGraph) -> float:
-        """rate scaled so that rate × lattice diagonal ≤ max_rate_nats (CG: cg_max_rate_nats)."""
-        lat = graph.lattice
-        diag = float(np.linalg.norm([a[-1] - a[0] for a in lat.axes]))
-        budget = self.cg_max_rate_nats if self.solver_kind(lat.dim) == "cg" else self.max_rate_nats
+        """rate scaled so that rate × diagonal of the graph's bounding box ≤ max_rate_nats
+        (CG: cg_max_rate_nats)."""
+        diag = float(np.linalg.norm(np.ptp(graph.xyz, axis=0))) if graph.n_nodes else 1.0
+        budget = self.cg_max_rate_nats if self.solver_kind(graph.lattice.dim) == "cg" else self.max_rate_nats
         return min(self.cost_rate_per_m, budget / max(diag, 1e-9))
 
     def system(self, graph: FreeSpaceGraph, term_node: np.ndarray, rate: float):
@@ -132,8 +132,11 @@ class LmdpBackend:
         return solve, kind
 
     def solve(self, graph: FreeSpaceGraph, start: int, term_node: np.ndarray,
-              term_len_m: np.ndarray, reachable: np.ndarray) -> TravelSolution:
-        """Costs to every candidate with ``reachable`` (others: inf)."""
+              term_len_m: np.ndarray, reachable: np.ndarray, want_travel_m: bool = True) -> TravelSolution:
+        """Costs to every candidate with ``reachable`` (others: inf).
+
+        ``want_travel_m=False`` skips the second solve (``travel_m`` is then NaN).
+        """
         self.last_info = {}
         rate = self.effective_rate(graph)
         tn = np.where(reachable, term_node, -1)
@@ -143,8 +146,8 @@ class LmdpBackend:
         e0[start] = 1.0
         u = solve(e0)
         # d(D − W)/d rate = ℓ∘W  ⇒  du/d rate = −(D − W)⁻¹ (ℓ∘W) u
-        lw = graph.length_m.multiply(w).tocsr()
-        du = -solve(lw @ u)
+        if want_travel_m:
+            du = -solve(graph.length_m.multiply(w).tocsr() @ u)
         cost = np.full(len(term_node), np.inf)
         travel = np.full(len(term_node), np.inf)
         ok = reachable & (tn >= 0)
@@ -155,7 +158,7 @@ class LmdpBackend:
         good = un > floor
         gi = idx[good]
         cost[gi] = -np.log(un[good]) + rate * term_len_m[gi]
-        travel[gi] = -du[tn[gi]] / un[good] + term_len_m[gi]
+        travel[gi] = (-du[tn[gi]] / un[good] + term_len_m[gi]) if want_travel_m else np.nan
         far = idx[~good]
         if len(far):
             # beyond the iterative solver's dynamic range: the single best path's LMDP cost
@@ -213,7 +216,7 @@ class DijkstraBackend:
     name = "dijkstra"
 
     def solve(self, graph: FreeSpaceGraph, start: int, term_node: np.ndarray,
-              term_len_m: np.ndarray, reachable: np.ndarray) -> TravelSolution:
+              term_len_m: np.ndarray, reachable: np.ndarray, want_travel_m: bool = True) -> TravelSolution:
         dist, pred = csg.dijkstra(graph.length_m, indices=start, return_predecessors=True)
         ok = reachable & (term_node >= 0)
         cost = np.full(len(term_node), np.inf)
@@ -224,7 +227,7 @@ class DijkstraBackend:
 
 
 def make_backend(name: str, cost_rate_per_m: float, max_rate_nats: float, solver: str = "auto",
-                 cg_rtol: float = 1e-14, cg_max_rate_nats: float = 5.0):
+                 cg_rtol: float = 1e-14, cg_max_rate_nats: float = 3.0):
     """'lmdp' or 'dijkstra'."""
     if name == "lmdp":
         return LmdpBackend(cost_rate_per_m, max_rate_nats, solver, cg_rtol, cg_max_rate_nats=cg_max_rate_nats)
