@@ -111,3 +111,15 @@ def test_sequence_gaps_are_counted_with_wrap_around():
     assert len(dec.feed(stream)) == len(seqs)
     assert dec.stats.gaps == 2
     assert dec.stats.lost_frames == 5
+
+
+def test_joining_mid_frame_is_not_a_fault_but_later_garbage_is():
+    frames = [encode_frame(k, k, np.full(8, k, np.uint16)) for k in range(4)]
+    dec = FrameDecoder()
+    got = dec.feed(frames[0][7:] + frames[1] + b"\x01\x02\xaa" + frames[2])
+    assert [f.seq for f in got] == [1, 2]
+    assert dec.stats.startup_bytes == len(frames[0]) - 7
+    assert dec.stats.resyncs == 1 and dec.stats.garbage_bytes == 3
+    dec.reset()  # a reconnect: joining again
+    assert [f.seq for f in dec.feed(frames[3][3:] + frames[3])] == [3]
+    assert dec.stats.startup_bytes == len(frames[0]) - 7 + len(frames[3]) - 3 and dec.stats.resyncs == 1

@@ -93,6 +93,7 @@ class DecoderStats:
     garbage_bytes: int = 0  # bytes skipped while searching for a sync word
     gaps: int = 0  # sequence discontinuities between consecutive valid frames
     lost_frames: int = 0  # frames missing according to the sequence numbers
+    startup_bytes: int = 0  # bytes skipped before the first valid frame (stream joined mid-frame)
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -115,9 +116,17 @@ class FrameDecoder:
         self._last_seq: int | None = None
 
     def reset(self) -> None:
-        """Forget buffered bytes and the sequence (e.g. after a reconnect); keep the counters."""
+        """Forget buffered bytes and the sequence (e.g. after a reconnect); keep the counters.
+
+        Until the next valid frame, skipped bytes and failed frames count as
+        ``startup_bytes``: a stream opened mid-frame is not a fault.
+        """
         self._buf.clear()
         self._last_seq = None
+
+    @property
+    def _joined(self) -> bool:
+        return self._last_seq is not None
 
     def feed(self, data: bytes) -> list[Frame]:
         """Append ``data`` to the stream; return the valid frames completed by it."""
@@ -140,8 +149,7 @@ class FrameDecoder:
                 break
             _, seq, ts_us, n = HEADER.unpack_from(buf, pos)
             if not 1 <= n <= self.max_taxels:
-                self.stats.bad_lengths += 1
-                self.stats.garbage_bytes += 1
+                self._fault("bad_lengths")
                 pos += 1
                 continue
             size = frame_size(n)
@@ -149,8 +157,7 @@ class FrameDecoder:
                 break
             (crc,) = struct.unpack_from("<H", buf, pos + size - CRC_SIZE)
             if crc != crc16_ccitt(bytes(buf[pos + 2 : pos + size - CRC_SIZE])):
-                self.stats.crc_errors += 1
-                self.stats.garbage_bytes += 1
+                self._fault("crc_errors")
                 pos += 1
                 continue
             values = np.frombuffer(bytes(buf[pos + HEADER_SIZE : pos + size - CRC_SIZE]), dtype="<u2").astype(np.uint16)
@@ -162,9 +169,21 @@ class FrameDecoder:
         return frames
 
     def _skip(self, n_bytes: int) -> None:
-        if n_bytes > 0:
-            self.stats.resyncs += 1
-            self.stats.garbage_bytes += n_bytes
+        if n_bytes <= 0:
+            return
+        if not self._joined:
+            self.stats.startup_bytes += n_bytes
+            return
+        self.stats.resyncs += 1
+        self.stats.garbage_bytes += n_bytes
+
+    def _fault(self, counter: str) -> None:
+        """A false sync or a corrupted frame: one byte skipped."""
+        if not self._joined:
+            self.stats.startup_bytes += 1
+            return
+        setattr(self.stats, counter, getattr(self.stats, counter) + 1)
+        self.stats.garbage_bytes += 1
 
     def _count_sequence(self, seq: int) -> None:
         if self._last_seq is not None:

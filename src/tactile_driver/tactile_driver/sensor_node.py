@@ -148,7 +148,7 @@ class TactileSensorNode(Node):
         self._rate_frames, self._rate_t = 0, now
         d, s, det = self.driver.decoder.stats, self.driver.stats, self.driver.detector
         counts = {
-            "frames": s.frames, "crc_errors": d.crc_errors, "bad_lengths": d.bad_lengths, "gaps": d.gaps,
+            "frames": s.frames, "bytes_in": d.bytes_in, "startup_bytes": d.startup_bytes, "crc_errors": d.crc_errors, "bad_lengths": d.bad_lengths, "gaps": d.gaps,
             "lost_frames": d.lost_frames, "resyncs": d.resyncs, "garbage_bytes": d.garbage_bytes,
             "stale_frames": s.stale_frames, "wrong_size_frames": s.wrong_size_frames,
             "reconnects": self.link.reconnects, "disconnects": self.link.disconnects,
@@ -162,6 +162,8 @@ class TactileSensorNode(Node):
         self._last_counts = counts
         if not self.link.connected:
             level, message = DiagnosticStatus.ERROR, f"device not connected: {self.link.last_error}"
+        elif d.frames == 0 and d.bytes_in > 0:
+            level, message = DiagnosticStatus.WARN, "bytes but no valid frame (baud rate? protocol?)"
         elif not det.calibrated:
             level, message = DiagnosticStatus.WARN, "calibrating baseline"
         elif new_faults:
