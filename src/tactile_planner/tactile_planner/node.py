@@ -129,7 +129,7 @@ class SocPlannerNode(Node):
             self.request = None
             msg = f"no goal after {waited_s:.0f} s: still waiting for {missing}"
             self.get_logger().warn(msg)
-            self.pub_status.publish(self.status_msg("no_map", msg, self.get_clock().now().to_msg(), None))
+            self.pub_status.publish(self.status_msg("timeout", msg, self.get_clock().now().to_msg(), None))
 
     # -- messages ---------------------------------------------------------
     def header(self, stamp) -> Header:

@@ -64,7 +64,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
 #: Parameters of the node only (accepted and ignored by ``TouchPlanner.from_params``).
 NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
     "frame_id": ("world", "frame of the goal and path (the map's frame)"),
-    "request_timeout_s": (30.0, "answer a request with status 'no_map' if no new enough map/tip pose arrives in time"),
+    "request_timeout_s": (30.0, "answer a request with status 'timeout' if no new enough map/tip pose arrives in time"),
 }
 
 
