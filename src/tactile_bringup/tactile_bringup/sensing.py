@@ -50,10 +50,11 @@ class SimulatedFinger:
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
         sensor, sim, planner = experiment.sensor_params, experiment.sim_params, experiment.planner_params
-        layout = layout_for(experiment.mode, sensor)
-        model = SensorModel(layout, _dataclass_from(SensorModelConfig, sim, "sensor_model."),
+        # sim_rig's own layout when set, else the driver's: both must be the same file.
+        layout = layout_for(experiment.mode, {"layout_file": sim.get("sensor_layout")} if sim.get("sensor_layout") else sensor)
+        model = SensorModel(layout, _dataclass_from(SensorModelConfig, sim, "model."),
                             seed=int(sim.get("sensor_seed", experiment.seed)))
-        detector = ContactDetector(layout, _dataclass_from(ContactConfig, sensor))
+        detector = ContactDetector(layout, _dataclass_from(ContactConfig, sensor, "contact."))
         frame_rate_hz = float(sim.get("sensor_frame_rate_hz", 200.0))
         step_m = float(planner.get("approach_speed_mps", 0.02)) / frame_rate_hz
         max_travel_m = (float(planner.get("standoff_m", 0.01)) + float(planner.get("max_depth_m", 0.02)))

@@ -9,10 +9,32 @@ Nested dictionaries are flattened to dotted names as ROS does.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 import yaml
+
+
+class _RosYamlLoader(yaml.SafeLoader):
+    """SafeLoader that reads numbers like ROS's parameter parser (YAML 1.2):
+    ``2.0e7`` and ``1e-12`` are floats (PyYAML's YAML 1.1 rules make them strings)."""
+
+
+_RosYamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+                  |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+                  |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+                  |[-+]?\.(?:inf|Inf|INF)
+                  |\.(?:nan|NaN|NAN))$""", re.X),
+    list("-+0123456789."),
+)
+
+
+def load_yaml(text: str):
+    """Parse YAML text with ROS's number rules."""
+    return yaml.load(text, Loader=_RosYamlLoader)
 
 
 class ParamsFileError(ValueError):
@@ -34,7 +56,7 @@ def read_params_file(path: Path) -> dict[str, dict[str, Any]]:
     """``{node name or '/**': {param: value}}`` of one file."""
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
+        doc = load_yaml(path.read_text())
     except FileNotFoundError:
         raise ParamsFileError(f"{path}: no such parameter file") from None
     except yaml.YAMLError as exc:
