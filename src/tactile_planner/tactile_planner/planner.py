@@ -13,7 +13,6 @@ the pre-touch point. World frame, metres, seconds.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping
@@ -27,7 +26,6 @@ from .paths import path_length_m, shortcut
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
 
-_log = logging.getLogger(__name__)
 
 #: name -> (default, description): the node's ROS parameters, also the keys of ``from_params``.
 PARAMETERS: dict[str, tuple[Any, str]] = {
