@@ -123,3 +123,10 @@ def test_3d_sphere_shell_plan():
     assert sdf.min() >= params["margin_m"] - 2e-4
     np.testing.assert_allclose(res.path_xyz[-1], res.pretouch_xyz)
     assert res.pretouch_xyz[2] >= params["min_tip_z_m"]
+
+
+def test_tip_far_outside_the_lattice_joins_without_snapping():
+    params = dict(load_params(str(CONFIG)), mode="3d")
+    res = TouchPlanner.from_params(params, seed=0).plan(sphere_map(32, 3), np.array([0.3, 0.0, 0.45]))
+    assert res.ok and not res.start_snapped, res.message
+    np.testing.assert_allclose(res.path_xyz[0], [0.3, 0.0, 0.45])

@@ -86,10 +86,11 @@ class FreeSpaceGraph:
         return best, bd
 
     def clearance_m(self, p_xyz: np.ndarray) -> np.ndarray:
-        """Multilinear interpolation of μ at points (−inf outside the lattice or below min z)."""
+        """Multilinear interpolation of μ at points (+inf outside the lattice: the object lies
+        inside the estimator's workspace box; −inf below min z in 3D)."""
         lat = self.lattice
         p = np.asarray(p_xyz, float).reshape(-1, 3)
-        interp = RegularGridInterpolator(lat.axes, lat.mean_m, bounds_error=False, fill_value=-np.inf)
+        interp = RegularGridInterpolator(lat.axes, lat.mean_m, bounds_error=False, fill_value=np.inf)
         mu = interp(p[:, : lat.dim])
         if lat.dim == 3:
             mu = np.where(p[:, 2] >= self.min_z_m - 1e-12, mu, -np.inf)
