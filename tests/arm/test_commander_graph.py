@@ -23,6 +23,7 @@ SIM = ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/con
        "-p", "sensor_enabled:=false", "-p", "real_time_factor:=4.0"]
 ARM = ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
        "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "watchdog_timeout_s:=2.0"]
+NO_START = ["-p", "move_to_start:=false"]
 APPROACH_M = 0.01 + 0.01 + 0.02  # standoff + tip radius + max depth (config defaults)
 
 
@@ -42,7 +43,7 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     g.start("sim", SIM)
-    g.start("arm", ARM)
+    g.start("arm", ARM + NO_START)
     g.wait_for(lambda: len(poses) > 5, 30, "fingertip poses")
     # Far from the object (circle at (0.5, 0)): the approach ends in free space.
     pre, direction = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])
@@ -79,3 +80,25 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     g.wait_for(lambda: time.monotonic() > t_end + 0.5, 5, "late trajectories")
     assert len(trajs) == n_traj
     assert g.procs["arm"].alive() and g.procs["sim"].alive()
+
+
+def test_moves_to_the_start_position_over_the_object_then_touches(ros_graph):
+    g = ros_graph
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    start = np.array([0.33, 0.0, 0.06])
+    g.start("sim", SIM)
+    g.start("arm", ARM + ["-p", "start_tip_xyz_m:=[0.33, 0.0, 0.06]"])
+
+    def tip(m):
+        return np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
+
+    # A goal sent before the tip is at the start waits for it.
+    _publish_touch(g, np.array([0.33, 0.0, 0.06]), np.array([0.0, 1.0, 0.0]), [[0.33, 0.0, 0.06]], 6)
+    g.wait_for(lambda: poses and np.linalg.norm(tip(poses[-1]) - start) < 3e-3, 30, "tip at the start position")
+    assert not done
+    xyz = np.array([tip(m) for m in poses])
+    low = xyz[:, 2] < 0.20  # below the clearance height only outside the object's footprint
+    assert np.all(np.linalg.norm(xyz[low, :2] - [0.5, 0.0], axis=1) > 0.1)
+    g.wait_for(lambda: done, 30, "the queued touch")
+    assert done[0].message == "free_space"

@@ -19,7 +19,7 @@ from graph_helpers import done_values, goal_and_path
 pytestmark = pytest.mark.graph
 
 ROOT = FsPath(__file__).resolve().parents[2]
-ARM_PARAMS = ["--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml")]
+ARM_PARAMS = ["--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"), "-p", "move_to_start:=false"]
 HOME = [0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]
 NAMES = [f"panda_joint{i}" for i in range(1, 8)]
 PRE, DIRECTION = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])

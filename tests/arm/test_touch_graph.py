@@ -41,7 +41,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
                        str(ROOT / "src/tactile_driver/config/tactile_sensor.yaml"),
                        "-p", f"port:={link}", "-p", "use_sim_time:=true"])
     g.start("arm", ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
-                    "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1",
+                    "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "move_to_start:=false",
                     "-p", "watchdog_timeout_s:=2.0"])  # a loaded shared test machine stalls processes
     goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
     path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)

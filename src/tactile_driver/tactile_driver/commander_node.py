@@ -56,6 +56,9 @@ PARAMS = {
     "goal_time_tolerance_s": (_D.goal_time_tolerance_s, "extra time to reach it before aborting"),
     "watchdog_timeout_s": (_D.watchdog_timeout_s, "joint states older than this (steady clock) stop motion"),
     "control_period_s": (_D.control_period_s, "watchdog / completion check period (steady clock)"),
+    "move_to_start": (True, "at start-up move the tip to start_tip_xyz_m (the explorer waits for it there)"),
+    "start_tip_xyz_m": ([0.35, 0.0, 0.06], "start position of the tip (world); must equal the explorer's"),
+    "start_clearance_z_m": (0.25, "transfer height above the objects on the way to the start position"),
     "dry_run": (False, "plan and publish on ~/planned_trajectory only; send nothing to the controller"),
     "trajectory_topic": (_D.trajectory_topic, "ros2_control joint_trajectory_controller input"),
 }
@@ -79,11 +82,45 @@ class ArmCommanderNode(Node):
         self.invalid_goals = 0
         self.create_subscription(PoseStamped, topics.GOAL, self._on_goal, qos.EVENTS)
         self.create_subscription(Path, topics.PATH, self._on_path, qos.EVENTS)
-        self.create_timer(cfg.control_period_s, self.touches.update, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._start_xyz = np.asarray(p.start_tip_xyz_m, dtype=float)
+        if p.move_to_start and self._start_xyz.shape != (3,):
+            raise ValueError(f"start_tip_xyz_m needs 3 values, got {list(p.start_tip_xyz_m)}")
+        self._clearance_z_m = p.start_clearance_z_m
+        self._start_state = "pending" if p.move_to_start else "done"
+        self.touches.hold = p.move_to_start  # touches wait until the tip is at the start position
+        self.create_timer(cfg.control_period_s, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"arm_commander ready: {self.arm.model.nq} joints, tip {cfg.tip_offset_m} m from {cfg.flange_frame}, "
             f"box {self.arm.box.lower_xyz.tolist()} .. {self.arm.box.upper_xyz.tolist()}, dry_run={cfg.dry_run}"
         )
+
+    def _tick(self) -> None:
+        if self._start_state != "done":
+            self._move_to_start()
+        self.touches.update()
+
+    def _move_to_start(self) -> None:
+        """Once: up to the clearance height, across, and down to the start position."""
+        arm = self.arm
+        if self._start_state == "pending":
+            if (arm.tip_xyz is None and not arm.cfg.dry_run) or arm.estop.engaged:
+                return  # wait for joint states / e-stop release
+            here = arm.tip_xyz if arm.tip_xyz is not None else arm.model.fk(arm.home)[0]
+            z = max(here[2], self._clearance_z_m, self._start_xyz[2])
+            path = np.array([[here[0], here[1], z], [self._start_xyz[0], self._start_xyz[1], z], self._start_xyz])
+            if arm.follow_path(path):
+                self._start_state = "moving"
+            else:
+                self.get_logger().error(f"cannot move to the start position: {arm.last_task.reason}")
+                self._start_state = "done"
+        elif self._start_state == "moving" and arm.is_task_complete():
+            if arm.get_result().name == "SUCCEEDED":
+                self.get_logger().info(f"tip at the start position {self._start_xyz.tolist()}")
+            else:
+                self.get_logger().error(f"move to the start position ended: {arm.last_task.reason}")
+            self._start_state = "done"
+        if self._start_state == "done":
+            self.touches.hold = False
 
     def _on_goal(self, msg: PoseStamped) -> None:
         self._goals[arm_msgs.stamp_ns(msg.header.stamp)] = msg

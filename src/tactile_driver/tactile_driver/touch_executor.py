@@ -71,6 +71,7 @@ class TouchExecutor:
         self._publish_free_space = publish_free_space
         self._publish_done = publish_done
         self.queue: deque[TouchRequest] = deque()
+        self.hold = False  # True: queue touches but do not start them (e.g. moving to the start)
         self._req: Optional[TouchRequest] = None
         self._state = "idle"
         self._t0_s = 0.0
@@ -90,7 +91,7 @@ class TouchExecutor:
 
     def update(self) -> None:
         if self._req is None:
-            if self.queue:
+            if self.queue and not self.hold:
                 self._begin(self.queue.popleft())
             return
         arm = self.arm
