@@ -49,6 +49,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "tip_radius_m": (0.01, "fingertip radius"),
     "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps"),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable"),
+    "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)"),
+    "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
+                           "finger would touch them with its side); -1 = off"),
     "tip_speed_mps": (0.1, "free-space tip speed (motion model)"),
     "approach_speed_mps": (0.02, "approach/retract speed (motion model)"),
     "dwell_s": (0.5, "time at contact (motion model)"),
@@ -132,6 +135,15 @@ class TouchPlanner:
             info_gain_noise_var_m2=float(p["info_gain_noise_var_m2"]),
         )
         self.last_graph: FreeSpaceGraph | None = None
+        #: Targets chosen so far. Touching a place again teaches nothing when the
+        #: finger cannot reach it (it lands on the same rim each time), so they
+        #: are skipped; ``reset()`` forgets them.
+        self.visited: list[np.ndarray] = []
+
+    def reset(self) -> None:
+        """Forget the chosen targets and restart the random generator (a new exploration)."""
+        self.visited = []
+        self.rng = np.random.default_rng(self.seed)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], seed: int) -> "TouchPlanner":
@@ -186,6 +198,11 @@ class TouchPlanner:
             ex = np.asarray(excluded_targets, float).reshape(-1, 3)
             d = np.linalg.norm(target[:, None, :dim] - ex[None, :, :dim], axis=2)
             excluded = np.any(d <= float(p["exclude_radius_m"]), axis=1)
+        if self.visited and float(p["revisit_radius_m"]) > 0:
+            d = np.linalg.norm(target[:, None, :dim] - np.asarray(self.visited)[None, :, :dim], axis=2)
+            excluded |= np.any(d <= float(p["revisit_radius_m"]), axis=1)
+        if dim == 3:
+            excluded |= normal[:, 2] < float(p["min_normal_z"])
 
         p_in = float(p["p_inside_max"])
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
@@ -237,6 +254,7 @@ class TouchPlanner:
             extra += f"; {info['n_beyond_range']} costs beyond the solver's range (best-path bound used)"
         if info.get("path_fallback"):
             extra += "; path: shortest-path fallback"
+        self.visited.append(target[idx].copy())
         return PlanResult(
             "ok",
             f"candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "

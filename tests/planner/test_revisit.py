@@ -1,0 +1,57 @@
+"""Targets already chosen are not chosen again; 3D candidates a vertical finger cannot touch are skipped."""
+
+import numpy as np
+
+from tactile_planner.planner import TouchPlanner
+from tactile_planner.synthetic import sphere_map
+
+
+def test_same_map_twice_gives_a_new_target_far_enough():
+    m = sphere_map(96, 2, seed=1)
+    planner = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "revisit_radius_m": 0.005}, seed=0)
+    tip = np.array([0.33, 0.0, 0.06])
+    first = planner.plan(m, tip)
+    second = planner.plan(m, tip)
+    assert first.ok and second.ok
+    assert np.linalg.norm(second.target_xyz - first.target_xyz) > 0.005
+    # Without the memory the most uncertain point is chosen again.
+    planner.reset()
+    assert np.allclose(planner.plan(m, tip).target_xyz, first.target_xyz)
+    off = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "revisit_radius_m": 0.0}, seed=0)
+    assert np.allclose(off.plan(m, tip).target_xyz, off.plan(m, tip).target_xyz)
+
+
+def _sphere_candidates(center, radius_m, n):
+    """Candidates spread over the whole sphere above z = 0.02 (a Fibonacci lattice)."""
+    from tactile_common.fields import KIND_CANDIDATE, VARIANCE_MAP_DTYPE
+
+    k = np.arange(n) + 0.5
+    phi, th = np.arccos(1 - 2 * k / n), np.pi * (1 + 5**0.5) * k
+    nrm = np.stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)], axis=1)
+    p = np.asarray(center) + radius_m * nrm
+    keep = p[:, 2] > 0.02
+    cand = np.zeros(int(keep.sum()), VARIANCE_MAP_DTYPE)
+    for i, f in enumerate("xyz"):
+        cand[f] = p[keep, i]
+        cand["normal_" + f] = nrm[keep, i]
+    cand["variance"] = np.random.default_rng(3).uniform(1e-5, 1e-3, len(cand))
+    cand["kind"] = KIND_CANDIDATE
+    return cand
+
+
+def test_3d_candidates_facing_down_are_skipped():
+    center = (0.5, 0.0, 0.10)
+    m = sphere_map(40, 3, center=center, n_candidates=1, seed=2)
+    cand = _sphere_candidates(center, 0.05, 300)
+    m = np.concatenate([m[m["kind"] == 0], cand])
+    assert (cand["normal_z"] < -0.2).sum() > 50
+    tip = np.array([0.33, 0.0, 0.15])
+    planner = TouchPlanner.from_params({"mode": "3d", "strategy": "uncertainty", "min_normal_z": -0.2}, seed=0)
+    allowed = cand["normal_z"] >= -0.2
+    best_allowed = cand[allowed][np.argmax(cand["variance"][allowed])]
+    res = planner.plan(m, tip)
+    assert res.ok and np.allclose(res.target_xyz, [best_allowed["x"], best_allowed["y"], best_allowed["z"]])
+    off = TouchPlanner.from_params({"mode": "3d", "strategy": "uncertainty", "min_normal_z": -1.0}, seed=0)
+    res = off.plan(m, tip)
+    reachable_best = cand[np.argmax(np.where(np.isfinite(res.travel_costs), cand["variance"], -1))]
+    assert np.allclose(res.target_xyz, [reachable_best["x"], reachable_best["y"], reachable_best["z"]])
