@@ -285,7 +285,7 @@ class ArmCommander:
         if self.tip_xyz is not None:
             self.odometer_m += float(np.linalg.norm(p - self.tip_xyz))
         self.q, self.tip_xyz = q, p
-        if self._pub_pose is not None:
+        if self._pub_pose is not None and self.node.context.ok():  # not while shutting down
             self._pub_pose.publish(arm_msgs.pose_stamped(p, R, topics.WORLD_FRAME, msg.header.stamp))
         if self._on_state is not None:
             self._on_state(q, p, msg.header.stamp)

@@ -124,6 +124,8 @@ class SimRig(Node):
             self.get_logger().error(f"trajectory rejected ({self.controller.rejected} so far): {exc}")
 
     def _tick(self) -> None:
+        if not self.context.ok():  # SIGINT arrived during this spin: publishing would raise
+            return
         self.t_s += self.dt_s
         stamp = self._stamp(self.t_s)
         self._pub_clock.publish(ClockMsg(clock=stamp))
