@@ -61,7 +61,6 @@ mapfile -t files < <(python -m tactile_bringup.launch_plan plan "${plan_args[@]}
 [ "${#files[@]}" -gt 0 ] || exit 2
 params_args=()
 for f in "${files[@]}"; do params_args+=(--params-file "$f"); done
-files_list="[$(IFS=,; echo "${files[*]}")]"
 
 sim_time=false
 sensor_link="$sensor_port"
@@ -70,11 +69,39 @@ if [ "$rig" = sim ]; then
   sensor_link="$run_dir/sensor.pty"
 fi
 
+# What this launch decides (paths, simulated time, the rig) goes in a last file with
+# node sections: rcl lets a node section of a file beat a '-p' given on the command
+# line in some cases (e.g. with a remapped node name), so no '-p' is used at all.
+launch_yaml="$run_dir/params/99_launch.yaml"
+cat > "$launch_yaml" <<YAML
+# Written by scripts/explore.sh for this run.
+/**:
+  ros__parameters:
+    use_sim_time: $sim_time
+recorder:
+  ros__parameters:
+    output: "$run_dir/run.mcap"
+    exclude: ["/rosout", "/parameter_events"]
+sim_rig:
+  ros__parameters:
+    real_time_factor: $rtf
+    sensor_link_path: "$sensor_link"
+tactile_sensor:
+  ros__parameters:
+    port: "$sensor_link"
+explorer:
+  ros__parameters:
+    params_files: [$(printf '"%s", ' "${files[@]}" | sed 's/, $//')]
+    out_dir: "$run_dir"
+    mode: "$mode"
+    evaluate: $([ "$rig" = sim ] && echo true || echo false)
+YAML
+params_args+=(--params-file "$launch_yaml")
+
 names=() pids=()
-start() {  # start NAME EXECUTABLE [ros args...]: a node in the background, logging to logs/NAME.log
-  local name="$1" exe="$2"; shift 2
-  "$exe" --ros-args -r __node:="$name" -p use_sim_time:=$sim_time "${params_args[@]}" "$@" \
-      > "$run_dir/logs/$name.log" 2>&1 &
+start() {  # start EXECUTABLE: a node in the background (its own node name), logging to logs/<name>.log
+  local name="$1"
+  "$name" --ros-args "${params_args[@]}" > "$run_dir/logs/$name.log" 2>&1 &
   names+=("$name"); pids+=($!)
 }
 
@@ -107,25 +134,24 @@ summary() {
 trap on_signal INT TERM
 
 echo "ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVERY_RANGE; logs in $run_dir/logs" >&2
-start recorder recorder -p output:="$run_dir/run.mcap" -p "exclude:=[/rosout,/parameter_events]"
+start recorder
 if [ "$rig" = sim ]; then
-  start sim_rig sim_rig -p real_time_factor:="$rtf" -p sensor_link_path:="$sensor_link"
+  start sim_rig
 else
   python -m tactile_bringup.launch_plan wait-joint-states --timeout 15 || { stop_all; exit 1; }
   if [ ! -e "$sensor_port" ]; then
     echo "explore.sh: sensor device $sensor_port does not exist (--sensor-port)" >&2; stop_all; exit 1
   fi
 fi
-start tactile_sensor tactile_sensor -p port:="$sensor_link"
-start gpis_estimator gpis_estimator
-start soc_planner soc_planner
+start tactile_sensor
+start gpis_estimator
+start soc_planner
 if [ "$rig" = hardware ] && [ "$yes" != 1 ]; then
   read -r -p "The arm will move to the start pose and touch the object. Continue? [y/N] " answer < /dev/tty
   case "$answer" in y|Y|yes) ;; *) echo "explore.sh: aborted before any motion" >&2; stop_all; exit 1 ;; esac
 fi
-start arm_commander arm_commander
-start explorer explorer -p "params_files:=$files_list" -p out_dir:="$run_dir" -p mode:="$mode" \
-  -p evaluate:=$([ "$rig" = sim ] && echo true || echo false)
+start arm_commander
+start explorer
 explorer_pid="${pids[-1]}"
 # Show the explorer's progress here while it runs.
 tail -n +1 -f "$run_dir/logs/explorer.log" --pid "$explorer_pid" &

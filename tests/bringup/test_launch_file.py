@@ -19,5 +19,5 @@ def test_launch_file_nodes_exist_and_match_explore_sh():
     for executable, package in launched:
         assert executable in _console_scripts(package), f"{package} has no executable {executable}"
     script = (ROOT / "scripts/explore.sh").read_text()
-    started = set(re.findall(r"^\s*start (\w+) ", script, flags=re.M))
+    started = set(re.findall(r"^\s*start (\w+)\s*$", script, flags=re.M))
     assert {e for e, _ in launched} == started

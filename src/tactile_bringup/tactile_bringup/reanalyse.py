@@ -3,7 +3,9 @@
 No graph: rebuilds the estimate from the recorded observations
 (``/tactile/contacts``) in the order the touches ended (``/arm/touch_done``),
 with the recorded targets (``/planner/goal``) and decision times
-(``/planner/status``), recomputes the report and figures, and writes them
+(``/planner/status``), re-makes every decision with the planner the graph
+ran (``decisions`` in the report: graph and offline targets, and whether they
+agree), recomputes the report and figures, and writes them
 to ``--out`` (default: ``<run folder>/reanalysis``). Parameters: the files
 the run's nodes got (``<run folder>/params/``), then the user's ``--params``
 (e.g. other GPIS hyperparameters).
@@ -16,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import Optional, Sequence
 
+import numpy as np
 from rclpy.serialization import deserialize_message
 
 from tactile_common import topics
@@ -26,7 +29,8 @@ from .bag_ros import message_class
 from .cli_common import run_main
 from .experiment import Experiment
 from .player import Recording
-from .progress import RunRecorder
+from .loop import make_planner
+from .progress import RunRecorder, write_outputs
 
 PLANNER_STATUS = "/planner/status"
 
@@ -52,6 +56,12 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
     mode = str(node_params(files, "gpis_estimator").get("mode", "2d"))
     exp = Experiment.from_files(mode, [str(f) for f in files])
     run = RunRecorder(exp, out_dir, evaluate=evaluate)
+    # The planner the graph ran, re-run on the rebuilt estimate before each
+    # touch: with the same code, parameters and seed it must choose the same
+    # targets from the same observations (sensing noise aside).
+    planner = make_planner(exp)
+    tip = np.asarray(exp.start_tip_xyz, dtype=float)
+    decisions: list[dict] = []
     wanted = [t for t in (topics.CONTACTS, topics.GOAL, PLANNER_STATUS, topics.TOUCH_DONE) if t in recording.topics]
     if topics.TOUCH_DONE not in wanted or topics.CONTACTS not in wanted:
         raise ValueError(f"{bag} has no {topics.TOUCH_DONE} or {topics.CONTACTS}: not an exploration run")
@@ -75,12 +85,22 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
             obs_ns = int(values.get("observation_stamp_ns") or 0)
             if msg.message in ("contact", "free_space") and obs_ns in observations:
                 goal_ns = int(values.get("goal_stamp_ns") or 0)
-                run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,
-                              decision_ms.get(goal_ns, float("nan")))
+                plan = planner.plan(run.estimator.map_array(), tip)
+                record = run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,
+                                       decision_ms.get(goal_ns, float("nan")))
+                offline = plan.target_xyz if plan.ok else np.full(3, np.nan)
+                decisions.append({"index": record["index"], "graph_target": record["target"],
+                                  "offline_target": [float(v) for v in offline],
+                                  "same": bool(np.linalg.norm(np.subtract(record["target"], offline)) < 1e-6)})
+                if goals.get(goal_ns) is not None:
+                    p = goals[goal_ns].pose.position
+                    tip = np.array([p.x, p.y, p.z])
             else:
                 run.add_travel(travel, duration)
     report = run.report("recording ended")
-    run.write("recording ended")
+    report["summary"]["decisions_same_as_graph"] = sum(d["same"] for d in decisions)
+    report["decisions"] = decisions
+    write_outputs(report, run.estimator, run.evaluator, out_dir, exp.mode)
     return report
 
 
@@ -97,7 +117,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         report = reanalyse(args.bag, out, args.params, evaluate=not args.no_evaluate)
         s = report["summary"]
         iou = "n/a" if s["final_iou"] is None else f"{s['final_iou']:.3f}"
-        print(f"{s['touches']} touches re-analysed: final IoU {iou}, travel {s['travel_m']:.2f} m; wrote {out}")
+        print(f"{s['touches']} touches re-analysed: final IoU {iou}, travel {s['travel_m']:.2f} m; "
+              f"{s['decisions_same_as_graph']}/{s['touches']} decisions re-made identically; wrote {out}")
         return 0
 
     return run_main(body)

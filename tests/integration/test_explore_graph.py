@@ -1,0 +1,124 @@
+"""The main job end to end: scripts/explore.sh on the simulated rig, then replay --offline.
+
+Every node runs as its own process on a private ROS_DOMAIN_ID with
+localhost-only discovery. The checks are independent of the code under test
+where they can be: rosbags reads the recording, the object's analytic SDF
+judges the contacts, and the offline planner must re-make the graph's
+decisions from the graph's own observations.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactile_bringup.experiment import Experiment
+from tactile_bringup.loop import ExplorationLoop
+from tactile_bringup.report import check_report
+from tactile_common.testing import DomainLease
+from tactile_sim.objects import make_object
+
+ROOT = Path(__file__).resolve().parents[2]
+pytestmark = [pytest.mark.graph, pytest.mark.slow]
+
+
+@pytest.fixture
+def domain_env():
+    lease = DomainLease()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    yield env
+    lease.release()
+
+
+def _explore(env, out: Path, *args: str, timeout_s: float = 420) -> subprocess.CompletedProcess:
+    return subprocess.run(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), *args],
+                          env=env, capture_output=True, text=True, timeout=timeout_s, stdin=subprocess.DEVNULL)
+
+
+def _logs(out: Path) -> str:
+    return "\n".join(f"--- {p.name}\n{p.read_text()[-3000:]}" for p in sorted((out / "logs").glob("*.log")))
+
+
+def test_graph_run_records_reports_and_replays_offline(domain_env, tmp_path):
+    out = tmp_path / "run"
+    touches = 10
+    result = _explore(domain_env, out, "--object", "kidney", "--touches", str(touches), "--seed", "2")
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:] + _logs(out)
+    assert "touch  10/10" in result.stdout + result.stderr, "progress is printed per touch"
+    for name in ("run.mcap", "report.json", "progress.png", "shape.csv"):
+        assert (out / name).stat().st_size > 0, name
+
+    report = json.loads((out / "report.json").read_text())
+    check_report(report)
+    assert len(report["touches"]) == touches and report["strategy"] == "proposed"
+    kidney = make_object("kidney", mode="2d")
+    contacts = [t for t in report["touches"] if t["outcome"] == "contact"]
+    assert len(contacts) >= touches // 2
+    for t in contacts:  # on the true surface (2 mm) with the true normal (10 degrees)
+        p = np.array([t["contact"][:2]])
+        assert abs(kidney.sdf(p)[0]) < 2e-3
+        assert np.dot(kidney.gradient(p)[0], t["normal"][:2]) > np.cos(np.radians(10))
+
+    # The recording opens with an independent reader and every message deserialises.
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    counts = {}
+    with AnyReader([out / "run.mcap"], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        for conn, _, raw in reader.messages():
+            reader.deserialize(raw, conn.msgtype)
+            counts[conn.topic] = counts.get(conn.topic, 0) + 1
+    for topic in ("/tactile/contacts", "/planner/goal", "/planner/path", "/gpis/variance_map",
+                  "/arm/touch_done", "/joint_states", "/clock"):
+        assert counts.get(topic, 0) > 0, f"{topic} not recorded: {sorted(counts)}"
+    assert counts["/arm/touch_done"] == touches
+
+    # Offline re-analysis: same final IoU, and the planner re-makes every decision
+    # of the graph from the graph's own observations (same code, parameters, seed).
+    re = subprocess.run(["bash", str(ROOT / "scripts/replay.sh"), str(out / "run.mcap"), "--offline"],
+                        env=domain_env, capture_output=True, text=True, timeout=300)
+    assert re.returncode == 0, re.stdout + re.stderr
+    again = json.loads((out / "reanalysis" / "report.json").read_text())
+    assert again["summary"]["final_iou"] == pytest.approx(report["summary"]["final_iou"], abs=1e-12)
+    assert [d["same"] for d in again["decisions"]] == [True] * touches, again["decisions"]
+
+    # The offline loop (its own simulated sensing) starts with the same decision.
+    offline = ExplorationLoop(Experiment(mode="2d", object_name="kidney", touches=1, seed=2)).run()
+    assert np.allclose(offline["touches"][0]["target"], report["touches"][0]["target"], atol=1e-6)
+
+
+def test_ctrl_c_stops_every_node_and_keeps_the_report(domain_env, tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), "--touches", "30"],
+                            env=domain_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            stdin=subprocess.DEVNULL, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        log = out / "logs" / "explorer.log"
+        while time.monotonic() < deadline:  # wait for the first finished touch
+            if log.exists() and "touch   1/30" in log.read_text():
+                break
+            assert proc.poll() is None, proc.stdout.read()
+            time.sleep(0.2)
+        else:
+            pytest.fail("no touch finished within 240 s\n" + _logs(out))
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in the terminal sends
+        output, _ = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, output[-3000:]
+    report = json.loads((out / "report.json").read_text())
+    assert report["summary"]["stopped_because"] == "interrupted" and len(report["touches"]) >= 1
+    from mcap.reader import make_reader
+
+    with open(out / "run.mcap", "rb") as fh:  # finalised: the summary section is there
+        assert make_reader(fh).get_summary().statistics.message_count > 0
+    left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split()
+    assert left == [], f"processes left behind: {left}"
