@@ -68,27 +68,15 @@ NODE_ONLY_PARAMETERS = ("use_sim_time",)
 
 
 def load_params(path: str | Path, node_name: str = "gpis_estimator") -> dict[str, Any]:
-    """The ``<node_name>: ros__parameters:`` section of a ROS params YAML, flattened to
-    dotted names (``kernel: {type: x}`` -> ``kernel.type``)."""
-    import yaml
+    """The parameters of ``node_name`` in a ROS params YAML (its section and ``/**``),
+    flattened to dotted names (``kernel: {type: x}`` -> ``kernel.type``), numbers read
+    as ROS reads them."""
+    from tactile_common.params_file import node_params
 
-    with open(path) as fh:
-        doc = yaml.safe_load(fh) or {}
-    section = (doc.get(node_name) or doc.get("/**") or {}).get("ros__parameters")
-    if section is None:
+    params = node_params([Path(path)], node_name)
+    if not params:
         raise ValueError(f"{path}: no '{node_name}: ros__parameters:' section")
-    flat: dict[str, Any] = {}
-
-    def walk(prefix: str, d: Mapping[str, Any]) -> None:
-        for k, v in d.items():
-            name = f"{prefix}{k}"
-            if isinstance(v, Mapping):
-                walk(name + ".", v)
-            else:
-                flat[name] = v
-
-    walk("", section)
-    return flat
+    return params
 
 
 class ShapeEstimator:

@@ -272,12 +272,13 @@ def _dedupe(pts: np.ndarray) -> np.ndarray:
 
 
 def load_params(yaml_path: str, node_name: str = "soc_planner") -> dict:
-    """The ``<node>: ros__parameters:`` dict of a ROS parameter file."""
-    import yaml
+    """The parameters of ``node_name`` in a ROS parameter file (its section and
+    ``/**``), numbers read as ROS reads them (``1e-12`` is a float)."""
+    from pathlib import Path
 
-    with open(yaml_path) as fh:
-        doc = yaml.safe_load(fh) or {}
-    for key in (node_name, "/" + node_name, "/**"):
-        if key in doc and "ros__parameters" in (doc[key] or {}):
-            return dict(doc[key]["ros__parameters"])
-    raise ValueError(f"{yaml_path} has no '{node_name}: ros__parameters:' section")
+    from tactile_common.params_file import node_params
+
+    params = node_params([Path(yaml_path)], node_name)
+    if not params:
+        raise ValueError(f"{yaml_path} has no '{node_name}: ros__parameters:' section")
+    return params

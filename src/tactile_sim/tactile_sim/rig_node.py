@@ -21,6 +21,7 @@ from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
+from tactile_sim.device_params import DEVICE_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
 
 HOME_RAD = [0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]  # Panda: tip at (0.50, 0.00, 0.35), finger vertical
@@ -45,18 +46,7 @@ PARAMS = {
     "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "sensor_frame_rate_hz": (200.0, "sensor frame rate (simulated time)"),
     "sensor_seed": (0, "seed of the sensor noise, baselines and faults"),
-    "model.stiffness_pa_per_m": (2.0e7, "skin pressure per metre of penetration"),
-    "model.spread_m": (0.0025, "std of the skin's spatial spread"),
-    "model.counts_per_newton": (10000.0, "counts per newton (the driver's calibration)"),
-    "model.noise_counts": (2.0, "std of the taxel noise"),
-    "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
-    "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
-    "fault.drop_prob": (0.0, "per frame: frame not sent"),
-    "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
-    "fault.stuck_value": (4000, "value of the stuck taxel"),
-    "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
-    "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
-    "fault.disconnect_for_s": (1.0, "disconnect length"),
+    **DEVICE_PARAMETERS,
 }
 
 

@@ -20,6 +20,7 @@ from tactile_common.params import declare_parameters
 from tactile_driver.pose_buffer import quat_to_matrix
 from tactile_driver.sensor_node import resolve_config_file
 from tactile_driver.taxels import load_layout
+from tactile_sim.device_params import DEVICE_PARAMETERS
 from tactile_sim.objects import make_object
 from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
 from tactile_sim.sensor_model import SensorModelConfig
@@ -37,18 +38,7 @@ PARAMS = {
     "object_yaw_rad": (0.0, "object yaw"),
     "object_scale": (1.0, "object scale"),
     "prism_height_m": (0.12, "prism height in 2D mode"),
-    "model.stiffness_pa_per_m": (2.0e7, "skin pressure per metre of penetration"),
-    "model.spread_m": (0.0025, "std of the skin's spatial spread"),
-    "model.counts_per_newton": (10000.0, "counts per newton (the driver's calibration)"),
-    "model.noise_counts": (2.0, "std of the taxel noise"),
-    "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
-    "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
-    "fault.drop_prob": (0.0, "per frame: frame not sent"),
-    "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
-    "fault.stuck_value": (4000, "value of the stuck taxel"),
-    "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
-    "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
-    "fault.disconnect_for_s": (1.0, "disconnect length"),
+    **DEVICE_PARAMETERS,
 }
 
 

@@ -1,0 +1,21 @@
+"""Parameters of the simulated sensor device, shared by ``sim_rig`` and ``sim_sensor_device``.
+
+name -> (default, description); ``model.*`` configure
+:class:`~tactile_sim.sensor_model.SensorModelConfig`, ``fault.*`` the
+injected faults (:class:`~tactile_sim.sensor_device.FaultConfig`).
+"""
+
+DEVICE_PARAMETERS = {
+    "model.stiffness_pa_per_m": (2.0e7, "skin pressure per metre of penetration"),
+    "model.spread_m": (0.0025, "std of the skin's spatial spread"),
+    "model.counts_per_newton": (10000.0, "counts per newton (the driver's calibration)"),
+    "model.noise_counts": (2.0, "std of the taxel noise"),
+    "fault.garbage_prob": (0.0, "per frame: a burst of garbage bytes"),
+    "fault.crc_error_prob": (0.0, "per frame: a corrupted byte"),
+    "fault.drop_prob": (0.0, "per frame: frame not sent"),
+    "fault.stuck_taxel": (-1, "index of a stuck taxel (-1: none)"),
+    "fault.stuck_value": (4000, "value of the stuck taxel"),
+    "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
+    "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
+    "fault.disconnect_for_s": (1.0, "disconnect length"),
+}
