@@ -89,6 +89,7 @@ sim_rig:
 tactile_sensor:
   ros__parameters:
     port: "$sensor_link"
+$([ "$rig" = sim ] && printf '    %s\n' "device_clock_is_ros_time: true  # the simulated device stamps simulated time" "max_frame_age_s: 1.0  # simulated seconds: the rig may run several times faster than the wall clock")
 explorer:
   ros__parameters:
     params_files: [$(printf '"%s", ' "${files[@]}" | sed 's/, $//')]

@@ -48,7 +48,8 @@ def _logs(out: Path) -> str:
 def test_graph_run_records_reports_and_replays_offline(domain_env, tmp_path):
     out = tmp_path / "run"
     touches = 10
-    result = _explore(domain_env, out, "--object", "kidney", "--touches", str(touches), "--seed", "2")
+    result = _explore(domain_env, out, "--object", "kidney", "--touches", str(touches), "--seed", "2",
+                      "--real-time-factor", "2")
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:] + _logs(out)
     assert "touch  10/10" in result.stdout + result.stderr, "progress is printed per touch"
     for name in ("run.mcap", "report.json", "progress.png", "shape.csv"):

@@ -92,9 +92,19 @@ class ExplorerNode(Node):
         if self.state != "waiting_for_start":
             return
         tip = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
-        if np.linalg.norm(tip - self.exp.start_tip_xyz) <= self.p.start_tolerance_m:
+        if np.linalg.norm(tip - self.exp.start_tip_xyz) <= self.p.start_tolerance_m and self.graph_ready():
             self.get_logger().info("tip at the start position: first decision")
             self.request(0)
+
+    def graph_ready(self) -> bool:
+        """The planner listens to our requests and the commander reports touches.
+
+        A request is sent once (it is not idempotent: each one makes a goal), so
+        it must not go out before discovery has matched the planner; under load
+        that takes seconds. The recorder subscribes to everything: not counted.
+        """
+        planners = [i for i in self.get_subscriptions_info_by_topic(REQUEST) if i.node_name != "recorder"]
+        return bool(planners) and self.count_publishers(topics.TOUCH_DONE) > 0
 
     def on_goal(self, msg: PoseStamped) -> None:
         self.goals[_ns(msg.header.stamp)] = msg

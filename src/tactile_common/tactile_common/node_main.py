@@ -49,6 +49,11 @@ def run_node(
             ex.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:  # noqa: BLE001
+        # SIGINT/SIGTERM shut the context down from the signal handler; a wait or
+        # publish already under way then fails with an RCLError: a normal end.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             status = int(getattr(node, "exit_status", status))

@@ -33,6 +33,9 @@ class DriverConfig:
     pose_tolerance_s: float = 0.02
     pose_buffer_s: float = 2.0
     clock_window_s: float = 2.0
+    #: The device stamps frames in ROS time already (the simulated device stamps
+    #: simulated time): use its stamps as they are instead of estimating the offset.
+    device_clock_is_ros_time: bool = False
     pose_wait_s: float = 0.2
 
 
@@ -116,7 +119,8 @@ class SensorDriver:
         """Process the bytes read at host time ``now_s``."""
         out = DriverOutput(contacts=self._resolve_pending(now_s))
         for frame in self.decoder.feed(data):
-            stamp_s = self.clock.to_host(frame.timestamp_s, now_s)
+            stamp_s = (frame.timestamp_s if self.config.device_clock_is_ros_time
+                       else self.clock.to_host(frame.timestamp_s, now_s))
             if now_s - stamp_s > self.config.max_frame_age_s:
                 self.stats.stale_frames += 1
                 continue

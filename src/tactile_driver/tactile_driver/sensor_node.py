@@ -45,6 +45,8 @@ PARAMS = {
     "pose_buffer_s": (2.0, "length of the fingertip pose buffer"),
     "pose_wait_s": (0.2, "a contact newer than the newest pose waits this long for its pose"),
     "clock_window_s": (2.0, "window of the device-clock offset estimate"),
+    "device_clock_is_ros_time": (False, "the device stamps frames in ROS time (the simulated device: sim "
+                                        "time); else the offset is estimated from arrival times"),
     "contact.counts_per_newton": (10000.0, "taxel counts per newton of force"),
     "contact.on_threshold_n": (0.05, "contact on at this force"),
     "contact.off_threshold_n": (0.025, "contact off below this force"),
@@ -86,7 +88,8 @@ class TactileSensorNode(Node):
         )
         self.driver = SensorDriver(layout, contact, DriverConfig(
             max_frame_age_s=p.max_frame_age_s, pose_tolerance_s=p.pose_tolerance_s,
-            pose_buffer_s=p.pose_buffer_s, clock_window_s=p.clock_window_s, pose_wait_s=p.pose_wait_s))
+            pose_buffer_s=p.pose_buffer_s, clock_window_s=p.clock_window_s, pose_wait_s=p.pose_wait_s,
+            device_clock_is_ros_time=p.device_clock_is_ros_time))
         self.link = SerialLink(p.port, p.baud, p.reconnect_min_s, p.reconnect_max_s)
         self.world_frame = p.world_frame
         self._connects_seen = 0
