@@ -55,7 +55,8 @@ def test_dry_run_plans_and_publishes_no_trajectory(ros_graph):
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "dry_run:=true"])
     TouchPublisher(g).send(5)
-    g.wait_for(lambda: done, 20, "touch_done")
+    # touch_done and the planned trajectories travel on different topics: wait for both.
+    g.wait_for(lambda: done and len(planned) >= 3, 20, "touch_done and three planned trajectories")
     assert done[0].message == "aborted" and "dry_run" in done_values(done[0])["reason"]
     assert len(planned) == 3 and all(len(m.points) > 1 for m in planned)  # path, approach, retract
     # No joint states: planned from home, each motion from the end of the previous one.

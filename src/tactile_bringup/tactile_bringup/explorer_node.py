@@ -32,6 +32,7 @@ from tactile_common import fields, qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
+from tactile_common.stamps import stamp_ns, time_from_ns
 
 from .experiment import Experiment
 from .progress import RunRecorder
@@ -49,10 +50,6 @@ PARAMS = {
     "touch_timeout_s": (120.0, "give up if a touch does not end (wall clock)"),
     "max_unreachable": (10, "stop after this many unreachable goals in a row"),
 }
-
-
-def _ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 class ExplorerNode(Node):
@@ -107,7 +104,7 @@ class ExplorerNode(Node):
         return bool(planners) and self.count_publishers(topics.TOUCH_DONE) > 0
 
     def on_goal(self, msg: PoseStamped) -> None:
-        self.goals[_ns(msg.header.stamp)] = msg
+        self.goals[stamp_ns(msg.header.stamp)] = msg
 
     def on_planner_status(self, msg: DiagnosticStatus) -> None:
         values = {kv.key: kv.value for kv in msg.values}
@@ -124,7 +121,7 @@ class ExplorerNode(Node):
             self.get_logger().warn(f"unreadable contact cloud: {exc}")
             return
         if len(points):
-            self.observations[_ns(msg.header.stamp)] = points[0]
+            self.observations[stamp_ns(msg.header.stamp)] = points[0]
 
     def on_touch_done(self, msg: DiagnosticStatus) -> None:
         if self.state != "touching":
@@ -133,12 +130,10 @@ class ExplorerNode(Node):
         self.try_complete_touch()
 
     # -- the cycle ---------------------------------------------------------------
-    def request(self, stamp_ns: int) -> None:
+    def request(self, min_stamp_ns: int) -> None:
         self.state = "touching"
         self.t_state = time.monotonic()
-        header = Header(frame_id=topics.WORLD_FRAME)
-        header.stamp.sec, header.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
-        self.pub_request.publish(header)
+        self.pub_request.publish(Header(frame_id=topics.WORLD_FRAME, stamp=time_from_ns(min_stamp_ns)))
 
     def try_complete_touch(self) -> None:
         msg = self.pending_done

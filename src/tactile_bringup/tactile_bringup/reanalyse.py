@@ -24,6 +24,7 @@ from rclpy.serialization import deserialize_message
 from tactile_common import topics
 from tactile_common.params_file import node_params
 from tactile_common.pointcloud import from_pointcloud2
+from tactile_common.stamps import stamp_ns
 
 from .bag_ros import message_class
 from .cli_common import run_main
@@ -33,10 +34,6 @@ from .loop import make_planner
 from .progress import RunRecorder, write_outputs
 
 PLANNER_STATUS = "/planner/status"
-
-
-def stamp_ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def run_params_files(bag: Path) -> list[Path]:

@@ -11,6 +11,7 @@ from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from tactile_common.stamps import stamp_ns, stamp_s  # noqa: F401  (stamp_ns: used by the commander)
 from tactile_driver.trajectory import TimedTrajectory
 
 
@@ -89,11 +90,7 @@ def to_duration(t_s: float) -> Duration:
 
 
 def duration_s(d: Duration) -> float:
-    return d.sec + d.nanosec * 1e-9
-
-
-def stamp_ns(stamp: Time) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+    return stamp_s(d)
 
 
 def trajectory_msg(traj: Optional[TimedTrajectory], joint_names: Sequence[str], frame_id: str = "") -> JointTrajectory:

@@ -26,6 +26,7 @@ from tactile_common import fields, qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import to_pointcloud2
+from tactile_common.stamps import stamp_s
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
 from tactile_driver.serial_link import SerialLink
@@ -106,7 +107,7 @@ class TactileSensorNode(Node):
         self.get_logger().info(f"tactile_sensor: {layout.n_taxels} taxels ({layout.name}), device {p.port}")
 
     def _on_pose(self, msg: PoseStamped) -> None:
-        t = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t = stamp_s(msg.header.stamp)
         pp, q = msg.pose.position, msg.pose.orientation
         completed = self.driver.add_pose(t, [pp.x, pp.y, pp.z], [q.x, q.y, q.z, q.w])
         if completed is None:

@@ -23,16 +23,13 @@ from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
+from tactile_common.stamps import stamp_ns
 
 from .planner import NODE_PARAMETERS, PARAMETERS, PlanResult, TouchPlanner
 from .pose import approach_rotation, quaternion_xyzw
 
 REQUEST = "/planner/request"
 STATUS = "/planner/status"
-
-
-def _ns(stamp) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 class SocPlannerNode(Node):
@@ -70,7 +67,7 @@ class SocPlannerNode(Node):
             self.invalid_inputs += 1
             self.get_logger().error(f"invalid variance map ignored ({self.invalid_inputs} so far): {exc}")
             return
-        self.map_stamp_ns = _ns(msg.header.stamp)
+        self.map_stamp_ns = stamp_ns(msg.header.stamp)
         self.try_plan()
 
     def on_tip(self, msg: PoseStamped) -> None:
@@ -84,7 +81,7 @@ class SocPlannerNode(Node):
         self.try_plan()
 
     def on_request(self, msg: Header) -> None:
-        self.request = (_ns(msg.stamp), self.get_clock().now().nanoseconds)
+        self.request = (stamp_ns(msg.stamp), self.get_clock().now().nanoseconds)
         self.try_plan()
 
     def on_touch_done(self, msg: DiagnosticStatus) -> None:
@@ -110,7 +107,7 @@ class SocPlannerNode(Node):
         res = self.planner.plan(self.map, self.tip, ex)
         stamp = self.get_clock().now().to_msg()
         if res.ok:
-            self.goal_targets[_ns(stamp)] = res.target_xyz.copy()
+            self.goal_targets[stamp_ns(stamp)] = res.target_xyz.copy()
             self.pub_goal.publish(self.goal_msg(res, stamp))
             self.pub_path.publish(self.path_msg(res, stamp))
             self.get_logger().info(f"goal: {res.message} ({res.decision_ms:.1f} ms)")
@@ -154,7 +151,7 @@ class SocPlannerNode(Node):
         return path
 
     def status_msg(self, status: str, message: str, stamp, res: Optional[PlanResult]) -> DiagnosticStatus:
-        values = [KeyValue(key="detail", value=message), KeyValue(key="stamp_ns", value=str(_ns(stamp))),
+        values = [KeyValue(key="detail", value=message), KeyValue(key="stamp_ns", value=str(stamp_ns(stamp))),
                   KeyValue(key="invalid_inputs", value=str(self.invalid_inputs))]
         if res is not None:
             values += [KeyValue(key=k, value=str(v)) for k, v in (

@@ -20,6 +20,7 @@ from trajectory_msgs.msg import JointTrajectory
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
+from tactile_common.stamps import stamp_s
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
 from tactile_sim.device_params import DEVICE_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
@@ -101,8 +102,8 @@ class SimRig(Node):
         return device
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
-        times = np.array([pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points])
-        start_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        times = np.array([stamp_s(pt.time_from_start) for pt in msg.points])
+        start_s = stamp_s(msg.header.stamp)
         try:
             # A ragged message (points of different sizes) makes numpy raise ValueError.
             positions = (np.array([list(pt.positions) for pt in msg.points], dtype=float) if len(times)

@@ -17,6 +17,7 @@ from rclpy.node import Node
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
+from tactile_common.stamps import stamp_s
 from tactile_driver.pose_buffer import quat_to_matrix
 from tactile_driver.sensor_node import resolve_config_file
 from tactile_driver.taxels import load_layout
@@ -66,7 +67,7 @@ class SimSensorDeviceNode(Node):
 
     def _on_pose(self, msg: PoseStamped) -> None:
         pp, q = msg.pose.position, msg.pose.orientation
-        t_s = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        t_s = stamp_s(msg.header.stamp)
         try:
             self.device.set_pose([pp.x, pp.y, pp.z], quat_to_matrix([q.x, q.y, q.z, q.w]))
         except ValueError as exc:
