@@ -133,3 +133,18 @@ def test_per_contact_noise_down_weights_a_contact():
     _, var_unsure = unsure.predict(np.array([p[:2]]))
     assert var_unsure[0] > 100 * var_sure[0]
     assert not unsure.add_observation([0.4, 0.0, 0.06], None, 1, value_var_m2=-1.0)[0]
+
+
+def test_lattice_inside_agrees_with_the_exact_inside_test():
+    """The interpolated inside test (used by the metrics) against the GP's own prediction."""
+    est = ShapeEstimator.from_params({"mode": "2d", "lattice.points_per_axis_2d": 96})
+    angles = np.linspace(0, 2 * np.pi, 10, endpoint=False)
+    for a in angles:
+        n = np.array([np.cos(a), np.sin(a), 0.0])
+        est.add_observation(np.array([0.5, 0.0, 0.06]) + 0.04 * n, n, 1)
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(0.36, 0.64, 20000), rng.uniform(-0.14, 0.14, 20000)])
+    exact = est.inside(pts)
+    approx = est.lattice_inside(pts)
+    assert np.mean(exact != approx) < 0.01  # disagreement only within a lattice cell of the surface
+    assert not est.lattice_inside(np.array([[0.0, 0.0], [0.9, 0.9]])).any()

@@ -26,7 +26,8 @@ class Evaluator:
         self.true_surface = metrics.true_surface_samples(self.obj)
 
     def iou(self, estimator) -> float:
-        return metrics.iou(estimator.inside, self.obj, self.points)
+        """IoU of {μ < 0}, μ interpolated from the estimator's lattice (cheap after every touch)."""
+        return metrics.iou(estimator.lattice_inside, self.obj, self.points)
 
     def surface_error_m(self, estimator) -> Optional[float]:
         surface = estimator.surface_points()

@@ -240,6 +240,24 @@ class ShapeEstimator:
             ins &= P[:, 2] >= 0
         return ins
 
+    def lattice_inside(self, points: np.ndarray) -> np.ndarray:
+        """(N,) bool: the lattice mean, linearly interpolated, is < 0 (outside the
+        lattice: False; in 3D also False below the table).
+
+        Costs O(N) from the incrementally maintained lattice mean, where
+        :meth:`inside` costs a GP prediction per point (O(N n)): this is what the
+        metrics evaluate after every touch.
+        """
+        from scipy.interpolate import RegularGridInterpolator
+
+        P = self._xy(points)
+        interp = RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
+                                         fill_value=np.inf)
+        ins = interp(P) < 0
+        if self.dim == 3:
+            ins &= P[:, 2] >= 0
+        return ins
+
     def lattice_mean(self) -> np.ndarray:
         """Posterior mean on the lattice, shaped ``lattice_shape``."""
         return self.gp.eval_mean().reshape(self.lattice_shape)
