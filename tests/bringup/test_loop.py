@@ -63,6 +63,8 @@ def test_summary_against_hand_computation():
     s = summarise(touches, 0.2, "touch budget")
     assert s["travel_to_iou_0.95_m"] == 2.5 and s["final_iou"] == 0.96 and s["touches"] == 3
     assert summarise(touches[:1], 0.2, "x")["travel_to_iou_0.90_m"] is None
+    report = {"touches": touches, "summary": {"prior_iou": 0.2}}
+    assert [benchmark.iou_at_travel(report, b) for b in (0.5, 1.0, 1.4, 2.0, 9.0)] == [0.2, 0.5, 0.5, 0.92, 0.96]
 
 
 def test_bad_choices_are_clear_errors():

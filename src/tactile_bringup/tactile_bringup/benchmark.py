@@ -88,6 +88,43 @@ def overall_table(runs: Sequence[dict], level: str = "0.95") -> str:
     return "\n".join(lines) + "\n\n*runs that never reached the level count with their whole travel/time.\n"
 
 
+def iou_at_travel(report: dict, budget_m: float) -> float:
+    """IoU of the estimate when the cumulative travel first stops being within ``budget_m``."""
+    iou = report["summary"].get("prior_iou", 0.0)
+    for t in report["touches"]:
+        if t["travel_m"] > budget_m:
+            break
+        iou = t["iou"]
+    return float(iou)
+
+
+def budget_table(runs: Sequence[dict], budgets_m: Sequence[float] = (1.0, 1.5, 2.0, 3.0)) -> str:
+    """Median IoU per strategy at equal travel budgets: the claim in one table
+    (a run whose touch budget ended before a travel budget keeps its final IoU)."""
+    lines = ["| strategy | " + " | ".join(f"IoU at {b:g} m" for b in budgets_m) + " | median travel of the run (m) |",
+             "|---|" + "---|" * (len(budgets_m) + 1)]
+    for strat in sorted({r["strategy"] for r in runs}):
+        sel = [r for r in runs if r["strategy"] == strat]
+        cells = [f"{np.median([iou_at_travel(r, b) for r in sel]):.3f}" for b in budgets_m]
+        lines.append(f"| {strat} | " + " | ".join(cells) + f" | {np.median([r['summary']['travel_m'] for r in sel]):.2f} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_summary(runs: Sequence[dict], out: Path, mode: str, shapes: Sequence = ()) -> str:
+    """summary.md and the figures of a set of runs; the Markdown text."""
+    touches = max(len(r["touches"]) for r in runs)
+    seeds = len({r["seed"] for r in runs})
+    md = (f"# Strategy benchmark ({mode}, up to {touches} touches, {seeds} seeds)\n\n"
+          f"## Whole suite\n\n{overall_table(runs)}\n### IoU at equal travel\n\n{budget_table(runs)}\n"
+          f"## Per object (medians over seeds)\n\n{summary_table(runs)}")
+    (out / "summary.md").write_text(md)
+    plots.plot_strategies(runs, out / "iou_vs_travel.png", "travel_m")
+    plots.plot_strategies(runs, out / "iou_vs_time.png", "time_s")
+    if shapes:
+        plots.plot_gallery(sorted(shapes, key=lambda s: s[0]), out / "gallery.png")
+    return md
+
+
 def _fmt(v: Optional[float], digits: int) -> str:
     return "—" if v is None else f"{v:.{digits}f}"
 
@@ -100,9 +137,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel runs (default: cores)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSON",
+                        help="no runs: rebuild summary.md and the plots of an earlier runs.json into --out")
     args = parser.parse_args(argv)
 
     def body() -> int:
+        if args.from_runs:
+            runs = json.loads(args.from_runs.read_text())
+            if not runs:
+                raise ValueError(f"{args.from_runs} holds no runs")
+            args.out.mkdir(parents=True, exist_ok=True)
+            print(write_summary(runs, args.out, runs[0]["mode"]))
+            return 0
         from tactile_sim.objects import list_objects
 
         objects = args.objects.split(",") if args.objects else list_objects(args.mode)
@@ -137,15 +183,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                       f"{report['wall_s']:.0f} s  (elapsed {time.time() - t0:.0f} s)", file=sys.stderr)
         runs.sort(key=lambda r: (r["object"], r["strategy"], r["seed"]))
         (args.out / "runs.json").write_text(json.dumps(_clean(runs)))
-        md = (f"# Strategy benchmark ({args.mode}, {touches} touches, {args.seeds} seeds)\n\n"
-              f"## Whole suite\n\n{overall_table(runs)}\n## Per object (medians over seeds)\n\n"
-              f"{summary_table(runs)}")
-        (args.out / "summary.md").write_text(md)
-        plots.plot_strategies(runs, args.out / "iou_vs_travel.png", "travel_m")
-        plots.plot_strategies(runs, args.out / "iou_vs_time.png", "time_s")
-        shapes.sort(key=lambda s: s[0])
-        plots.plot_gallery(shapes, args.out / "gallery.png")
-        print(md)
+        print(write_summary(runs, args.out, args.mode, shapes))
         print(f"wrote {args.out}/runs.json, summary.md, iou_vs_travel.png, iou_vs_time.png, gallery.png",
               file=sys.stderr)
         return 0
