@@ -108,9 +108,9 @@ class ExplorerNode(Node):
 
     def on_planner_status(self, msg: DiagnosticStatus) -> None:
         values = {kv.key: kv.value for kv in msg.values}
-        stamp_ns = int(values.get("stamp_ns", "0") or 0)
+        goal_stamp_ns = int(values.get("stamp_ns", "0") or 0)
         if "decision_ms" in values:
-            self.decision_ms[stamp_ns] = float(values["decision_ms"])
+            self.decision_ms[goal_stamp_ns] = float(values["decision_ms"])
         if msg.message != "ok" and self.state == "touching":
             self.finish(f"planner: {msg.message}: {values.get('detail', '')}")
 
