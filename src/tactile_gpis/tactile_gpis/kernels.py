@@ -87,18 +87,22 @@ class ThinPlate(Kernel):
         return k, g, h
 
 
-class Matern52(Kernel):
+class _Stationary(Kernel):
+    """A stationary kernel with a length scale l (m) and a signal variance s2."""
+
+    def __init__(self, length_scale_m: float, signal_variance: float = 1.0) -> None:
+        _check_stationary(length_scale_m, signal_variance)
+        self.length_scale_m = float(length_scale_m)
+        self.signal_variance = float(signal_variance)
+
+
+class Matern52(_Stationary):
     """Matern 5/2: k = s2 (1 + a + a^2/3) exp(-a), a = sqrt(5) r / l.
 
     g = -s2 (5 / (3 l^2)) (1 + a) exp(-a), h = s2 (25 / (3 l^4)) exp(-a).
     """
 
     name = "matern52"
-
-    def __init__(self, length_scale_m: float, signal_variance: float = 1.0) -> None:
-        _check_stationary(length_scale_m, signal_variance)
-        self.length_scale_m = float(length_scale_m)
-        self.signal_variance = float(signal_variance)
 
     def radial(self, r):
         r = np.asarray(r, dtype=float)
@@ -111,15 +115,10 @@ class Matern52(Kernel):
         return k, g, h
 
 
-class SquaredExponential(Kernel):
+class SquaredExponential(_Stationary):
     """Squared exponential: k = s2 exp(-r^2 / (2 l^2)); g = -k / l^2, h = k / l^4."""
 
     name = "squared_exponential"
-
-    def __init__(self, length_scale_m: float, signal_variance: float = 1.0) -> None:
-        _check_stationary(length_scale_m, signal_variance)
-        self.length_scale_m = float(length_scale_m)
-        self.signal_variance = float(signal_variance)
 
     def radial(self, r):
         r = np.asarray(r, dtype=float)

@@ -1,6 +1,8 @@
-"""Parameters of the simulated sensor device, shared by ``sim_rig`` and ``sim_sensor_device``.
+"""Parameters of the hidden object and the simulated sensor device, shared by
+``sim_rig`` and ``sim_sensor_device``.
 
-name -> (default, description); ``model.*`` configure
+name -> (default, description); the object ones go to
+:func:`~tactile_sim.objects.make_object`; ``model.*`` configure
 :class:`~tactile_sim.sensor_model.SensorModelConfig`, ``fault.*`` the
 injected faults (:class:`~tactile_sim.sensor_device.FaultConfig`).
 """
@@ -18,4 +20,13 @@ DEVICE_PARAMETERS = {
     "fault.stuck_after_s": (0.0, "time after the first frame when the taxel sticks"),
     "fault.disconnect_at_s": (-1.0, "time after the first frame of a disconnect (negative: never)"),
     "fault.disconnect_for_s": (1.0, "disconnect length"),
+}
+
+OBJECT_PARAMETERS = {
+    "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
+    "mode": ("2d", "2d (prism contour) or 3d"),
+    "object_xy_m": ([0.50, 0.0], "object centre on the table (world)"),
+    "object_yaw_rad": (0.0, "object yaw"),
+    "object_scale": (1.0, "object scale"),
+    "prism_height_m": (0.12, "prism height in 2D mode"),
 }

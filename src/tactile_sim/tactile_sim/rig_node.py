@@ -22,7 +22,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.stamps import stamp_s
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
-from tactile_sim.device_params import DEVICE_PARAMETERS
+from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
 
 HOME_RAD = [0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]  # Panda: tip at (0.50, 0.00, 0.35), finger vertical
@@ -36,17 +36,12 @@ PARAMS = {
     "rate_hz": (100.0, "controller, /joint_states and /clock rate in simulated time"),
     "real_time_factor": (1.0, "simulated seconds per wall second"),
     "trajectory_topic": (topics.JOINT_TRAJECTORY, "joint_trajectory_controller input"),
-    "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
-    "mode": ("2d", "2d (prism contour) or 3d"),
-    "object_xy_m": ([0.50, 0.0], "object centre on the table (world)"),
-    "object_yaw_rad": (0.0, "object yaw"),
-    "object_scale": (1.0, "object scale"),
-    "prism_height_m": (0.12, "prism height in 2D mode"),
     "sensor_enabled": (True, "serve the simulated tactile sensor on a pty"),
     "sensor_link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
     "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "sensor_frame_rate_hz": (200.0, "sensor frame rate (simulated time)"),
     "sensor_seed": (0, "seed of the sensor noise, baselines and faults"),
+    **OBJECT_PARAMETERS,
     **DEVICE_PARAMETERS,
 }
 

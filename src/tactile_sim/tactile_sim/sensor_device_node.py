@@ -21,7 +21,7 @@ from tactile_common.stamps import stamp_s
 from tactile_driver.pose_buffer import quat_to_matrix
 from tactile_driver.sensor_node import resolve_config_file
 from tactile_driver.taxels import load_layout
-from tactile_sim.device_params import DEVICE_PARAMETERS
+from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.objects import make_object
 from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
 from tactile_sim.sensor_model import SensorModelConfig
@@ -33,12 +33,7 @@ PARAMS = {
     "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)"),
     "pose_timeout_s": (0.1, "without a pose this long, the timer drives the device"),
     "seed": (0, "seed of the noise, baselines and faults"),
-    "object": ("circle", "hidden object: a built-in name or a .csv/.stl/.obj path"),
-    "mode": ("2d", "2d (prism contour) or 3d"),
-    "object_xy_m": ([0.50, 0.0], "object centre on the table (world)"),
-    "object_yaw_rad": (0.0, "object yaw"),
-    "object_scale": (1.0, "object scale"),
-    "prism_height_m": (0.12, "prism height in 2D mode"),
+    **OBJECT_PARAMETERS,
     **DEVICE_PARAMETERS,
 }
 
