@@ -123,3 +123,26 @@ def test_ctrl_c_stops_every_node_and_keeps_the_report(domain_env, tmp_path):
         assert make_reader(fh).get_summary().statistics.message_count > 0
     left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split()
     assert left == [], f"processes left behind: {left}"
+
+
+def test_bad_choices_fail_before_any_node_starts(domain_env, tmp_path):
+    for args, message in ((["--object", "no_such_shape"], "unknown object"),
+                          (["--strategy", "fastest"], "unknown strategy"),
+                          (["--mode", "4d"], "invalid choice"),
+                          (["--real-time-factor", "fast"], "real-time-factor")):
+        result = _explore(domain_env, tmp_path / args[0].strip("-"), *args, timeout_s=120)
+        assert result.returncode == 2, (args, result.stdout, result.stderr)
+        assert message in result.stderr and "Traceback" not in result.stderr, result.stderr
+        assert not (tmp_path / args[0].strip("-") / "logs" / "explorer.log").exists()
+
+
+def test_hardware_rig_refuses_without_joint_states(domain_env, tmp_path):
+    """--rig hardware starts no simulator and refuses to move without ros2_control's joint states."""
+    port = tmp_path / "fake_tty"
+    port.touch()
+    result = _explore(domain_env, tmp_path / "run", "--rig", "hardware", "--sensor-port", str(port), "--yes",
+                      timeout_s=120)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "no message on /joint_states" in result.stderr
+    assert not (tmp_path / "run" / "logs" / "sim_rig.log").exists()
+    assert not (tmp_path / "run" / "logs" / "arm_commander.log").exists(), "nothing that moves was started"
