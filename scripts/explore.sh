@@ -90,6 +90,7 @@ tactile_sensor:
   ros__parameters:
     port: "$sensor_link"
 $([ "$rig" = sim ] && printf '    %s\n' "device_clock_is_ros_time: true  # the simulated device stamps simulated time" "max_frame_age_s: 1.0  # simulated seconds: the rig may run several times faster than the wall clock")
+$([ "$rig" = sim ] && printf '%s\n' "arm_commander:" "  ros__parameters:" "    watchdog_timeout_s: 2.0  # the simulator, not an arm: on a loaded machine its joint states stall for a second")
 explorer:
   ros__parameters:
     params_files: [$(printf '"%s", ' "${files[@]}" | sed 's/, $//')]

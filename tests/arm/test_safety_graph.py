@@ -78,6 +78,8 @@ def test_estop_during_approach_stops_the_rig_within_a_control_period(ros_graph):
     g.start("sim", ["sim_rig", "--ros-args", "-p", "sensor_enabled:=false", "-p", f"real_time_factor:={rtf}"])
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "use_sim_time:=true", "-p", "watchdog_timeout_s:=2.0"])
     estop = g.node.create_publisher(Bool, topics.ESTOP, qos.LATCHED)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.wait_for(lambda: len(poses) > 5 and len(states) > 5, 30, "joint states and fingertip poses")
     TouchPublisher(g).send(7)
     g.wait_for(lambda: len(sent) >= 2, 40, "the approach trajectory")  # path, then approach
     t_approach = time.monotonic()
@@ -128,3 +130,28 @@ def test_stale_joint_states_stop_motion(ros_graph):
     assert t_stop - t_last <= timeout_s + CONTROL_PERIOD_S + SLACK_S
     g.wait_for(lambda: done, 5, "touch_done")
     assert done[0].message == "aborted" and "stale" in done_values(done[0])["reason"]
+
+
+def test_move_to_start_is_planned_again_once_stalled_joint_states_flow(ros_graph):
+    """The start-up move ends on a joint-state stall (stop sent), then runs again when they flow."""
+    g = ros_graph
+    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+    js = JointState(name=NAMES, position=HOME)  # a controller that never moves: the move stays in progress
+    feeding = {"on": True}
+    g.node.create_timer(0.01, lambda: feeding["on"] and js_pub.publish(js))
+    g.start("arm", ["arm_commander", "--ros-args", "--params-file",
+                    str(ROOT / "src/tactile_driver/config/arm_commander.yaml"), "-p", "watchdog_timeout_s:=0.3"])
+    g.wait_for(lambda: sent, 20, "the move to the start position")
+    assert sent[0][1].points
+    feeding["on"] = False
+    g.wait_for(lambda: len(sent) >= 2, 5, "the stop")
+    assert sent[1][1].points == []
+    # Nothing is sent while the joint states are missing, however long that lasts.
+    t_stall = time.monotonic()
+    g.wait_for(lambda: time.monotonic() > t_stall + 1.0, 5, "a stall longer than the watchdog")
+    assert len(sent) == 2
+    feeding["on"] = True
+    g.wait_for(lambda: len(sent) >= 3, 5, "the move planned again")
+    again = sent[2][1]
+    assert again.points and np.allclose(again.points[-1].positions, sent[0][1].points[-1].positions, atol=1e-6)

@@ -55,6 +55,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     goal_pub.publish(goal)
     path_pub.publish(path)
     g.wait_for(lambda: done, 60, "touch_done")
+    g.wait_for(lambda: contacts, 10, "the contact")  # driver and commander publish in no set order
     v = done_values(done[0])
     assert done[0].message == "contact", v
     hits = [m for m in contacts if from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT]
@@ -78,6 +79,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     goal_pub.publish(goal)
     path_pub.publish(path)
     g.wait_for(lambda: len(done) >= 2, 60, "second touch_done")
+    g.wait_for(lambda: len(contacts) >= 2, 10, "the free-space point")
     v2 = done_values(done[1])
     assert done[1].message == "free_space", v2
     assert len(contacts) == 2
@@ -95,6 +97,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     goal_pub.publish(goal)
     path_pub.publish(path)
     g.wait_for(lambda: len(done) >= 3, 60, "third touch_done")
+    g.wait_for(lambda: len(contacts) >= 3, 10, "the unexpected contact")
     assert done[2].message == "aborted" and "unexpected contact" in done_values(done[2])["reason"]
     assert from_pointcloud2(contacts[2])["label"][0] == fields.LABEL_CONTACT
     # touched at path speed (5x the approach speed): the onset is detected deeper (not an accuracy test)

@@ -66,6 +66,7 @@ class ExplorerNode(Node):
         self.done = False
         self.exit_status = 0
         self.state = "waiting_for_start"
+        self.last_tip_xyz: Optional[np.ndarray] = None
         self.t_state = time.monotonic()
         self.last_obs_stamp_ns = 0
         self.unreachable_in_row = 0
@@ -89,6 +90,7 @@ class ExplorerNode(Node):
         if self.state != "waiting_for_start":
             return
         tip = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
+        self.last_tip_xyz = tip
         if np.linalg.norm(tip - self.exp.start_tip_xyz) <= self.p.start_tolerance_m and self.graph_ready():
             self.get_logger().info("tip at the start position: first decision")
             self.request(0)
@@ -179,11 +181,23 @@ class ExplorerNode(Node):
             self.try_complete_touch()
         waited = time.monotonic() - self.t_state
         if self.state == "waiting_for_start" and waited > self.p.start_timeout_s:
-            self.finish("the fingertip never reached the start position (is the arm commander running?)")
+            self.finish(self.start_failure())
             self.exit_status = 1
         elif self.state == "touching" and waited > self.p.touch_timeout_s:
             self.finish(f"no touch ended within {self.p.touch_timeout_s:.0f} s")
             self.exit_status = 1
+
+    def start_failure(self) -> str:
+        """Why the first decision never went out, in the words a rig user acts on."""
+        start = np.round(self.exp.start_tip_xyz, 3).tolist()
+        if self.last_tip_xyz is None:
+            return (f"no fingertip pose on {topics.FINGERTIP_POSE} within {self.p.start_timeout_s:.0f} s "
+                    "(is the arm commander running?)")
+        if np.linalg.norm(self.last_tip_xyz - self.exp.start_tip_xyz) > self.p.start_tolerance_m:
+            return (f"the fingertip never reached the start position {start} within {self.p.start_timeout_s:.0f} s: "
+                    f"it is at {np.round(self.last_tip_xyz, 3).tolist()} (see the arm commander's log)")
+        missing = "the planner" if self.count_publishers(topics.TOUCH_DONE) else "the arm commander's touch_done"
+        return f"the tip is at the start but {missing} was not discovered within {self.p.start_timeout_s:.0f} s"
 
     def finish(self, reason: str) -> None:
         if self.done:

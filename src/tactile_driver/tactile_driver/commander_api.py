@@ -98,6 +98,7 @@ class _Task:
     contact: Optional[np.ndarray] = None  # the CONTACT_DTYPE record that stopped it
     contact_stamp_ns: int = 0
     reason: str = ""
+    joint_states_lost: bool = False  # ended for stale/missing joint states: worth a retry once they flow
     extra: dict = field(default_factory=dict)
 
 
@@ -172,6 +173,10 @@ class ArmCommander:
         """Stop now and hold (empty trajectory); the current task ends CANCELED."""
         self._halt(TaskResult.CANCELED, "stop requested")
 
+    def watchdog_stale(self) -> bool:
+        """No joint state within ``watchdog_timeout_s`` (never in a dry run): a move would be rejected."""
+        return not self.cfg.dry_run and self.watchdog.is_stale(self._steady_s())
+
     def is_task_complete(self) -> bool:
         return self._task is None
 
@@ -219,11 +224,12 @@ class ArmCommander:
             q = self.q if self.q is not None else self.home
         return q, self.model.fk(q)[0]
 
-    def _reject(self, kind: str, reason: str) -> bool:
+    def _reject(self, kind: str, reason: str, joint_states_lost: bool = False) -> bool:
         self.counters["rejected"] += 1
         self.log.warning(f"{kind} rejected: {reason}")
         self._last = _Task(kind, TimedTrajectory(np.zeros(1), np.zeros((1, self.model.nq)), np.zeros((1, self.model.nq)),
-                                                 np.zeros((1, 3))), self.now_s(), result=TaskResult.REJECTED, reason=reason)
+                                                 np.zeros((1, 3))), self.now_s(), result=TaskResult.REJECTED, reason=reason,
+                           joint_states_lost=joint_states_lost)
         return False
 
     def _start(self, kind: str, path_xyz: np.ndarray, speed_mps: float, step_m: float) -> bool:
@@ -232,7 +238,7 @@ class ArmCommander:
         if self.estop.engaged:
             return self._reject(kind, "e-stop engaged")
         if not self.cfg.dry_run and (self.q is None or self.watchdog.is_stale(self._steady_s())):
-            return self._reject(kind, "no recent joint state")
+            return self._reject(kind, "no recent joint state", joint_states_lost=True)
         try:
             traj = self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
@@ -332,6 +338,7 @@ class ArmCommander:
         # If this process itself was stalled (the tick is late), joint states may be waiting in
         # the queue: judge staleness on the next tick, after the executor has delivered them.
         if self.watchdog.is_stale(now) and gap_s < 0.5 * self.watchdog.timeout_s:
+            task.joint_states_lost = True
             self._halt(TaskResult.ABORTED, f"joint states stale for {self.watchdog.age_s(now):.2f} s")
             return
         elapsed = self.now_s() - task.start_s

@@ -28,6 +28,7 @@ from tactile_driver.kinematics import KinematicsError
 from tactile_driver.touch_executor import OUTCOME_ABORTED, OUTCOME_UNREACHABLE, TouchExecutor, TouchReport, TouchRequest
 
 _D = CommanderConfig()
+START_ATTEMPTS = 3  # moves to the start position that may end for stalled joint states
 PARAMS = {
     "urdf_path": (_D.urdf_path, "URDF of the arm; '' = Franka Panda from example-robot-data"),
     "joint_names": (list(_D.joint_names), "actuated joints, in command order"),
@@ -87,6 +88,7 @@ class ArmCommanderNode(Node):
             raise ValueError(f"start_tip_xyz_m needs 3 values, got {list(p.start_tip_xyz_m)}")
         self._clearance_z_m = p.start_clearance_z_m
         self._start_state = "pending" if p.move_to_start else "done"
+        self._start_attempts = 0
         self.touches.hold = p.move_to_start  # touches wait until the tip is at the start position
         self.create_timer(cfg.control_period_s, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
@@ -100,24 +102,41 @@ class ArmCommanderNode(Node):
         self.touches.update()
 
     def _move_to_start(self) -> None:
-        """Once: up to the clearance height, across, and down to the start position."""
+        """Once: up to the clearance height, across, and down to the start position.
+
+        A move that ends because the joint states stalled (a loaded machine, a
+        controller restart) is planned again from where the arm stopped, up to
+        START_ATTEMPTS times; any other failure (unreachable, contact, e-stop) is final.
+        """
         arm = self.arm
         if self._start_state == "pending":
-            if (arm.tip_xyz is None and not arm.cfg.dry_run) or arm.estop.engaged:
+            if (arm.tip_xyz is None and not arm.cfg.dry_run) or arm.estop.engaged or arm.watchdog_stale():
                 return  # wait for joint states / e-stop release
             here = arm.tip_xyz if arm.tip_xyz is not None else arm.model.fk(arm.home)[0]
             z = max(here[2], self._clearance_z_m, self._start_xyz[2])
             path = np.array([[here[0], here[1], z], [self._start_xyz[0], self._start_xyz[1], z], self._start_xyz])
+            self._start_attempts += 1
             if arm.follow_path(path):
                 self._start_state = "moving"
             else:
-                self.get_logger().error(f"cannot move to the start position: {arm.last_task.reason}")
-                self._start_state = "done"
+                self._start_failed("cannot move to the start position")
         elif self._start_state == "moving" and arm.is_task_complete():
             if arm.get_result().name == "SUCCEEDED":
                 self.get_logger().info(f"tip at the start position {self._start_xyz.tolist()}")
+                self._start_state = "done"
             else:
-                self.get_logger().error(f"move to the start position ended: {arm.last_task.reason}")
+                self._start_failed("move to the start position ended")
+        if self._start_state == "done":
+            self.touches.hold = False  # queued touches go ahead, wherever the tip ended
+
+    def _start_failed(self, what: str) -> None:
+        task = self.arm.last_task
+        if task.joint_states_lost and self._start_attempts < START_ATTEMPTS:
+            self.get_logger().warning(f"{what}: {task.reason}; trying again when joint states flow "
+                                      f"(attempt {self._start_attempts + 1}/{START_ATTEMPTS})")
+            self._start_state = "pending"
+        else:
+            self.get_logger().error(f"{what}: {task.reason}")
             self._start_state = "done"
         if self._start_state == "done":
             self.touches.hold = False
