@@ -103,6 +103,7 @@ params_args+=(--params-file "$launch_yaml")
 names=() pids=()
 start() {  # start EXECUTABLE: a node in the background (its own node name), logging to logs/<name>.log
   local name="$1"
+  : > "$run_dir/logs/$name.log"  # exists now (the redirection below runs in the background job)
   "$name" --ros-args "${params_args[@]}" > "$run_dir/logs/$name.log" 2>&1 &
   names+=("$name"); pids+=($!)
 }
