@@ -148,3 +148,16 @@ def test_lattice_inside_agrees_with_the_exact_inside_test():
     approx = est.lattice_inside(pts)
     assert np.mean(exact != approx) < 0.01  # disagreement only within a lattice cell of the surface
     assert not est.lattice_inside(np.array([[0.0, 0.0], [0.9, 0.9]])).any()
+
+
+def test_a_contact_with_an_unknown_normal_is_a_point_observation():
+    """The driver reports a rim contact's normal as NaN: the point counts, the normal does not."""
+    p, n = [0.55, 0.0, 0.06], [0.6, 0.8, 0.0]  # a normal the prior circle does not have there
+    with_nan, point_only, with_normal = small_2d(), small_2d(), small_2d()
+    assert with_nan.add_observation(p, [np.nan] * 3, 1) == (True, "")
+    point_only.add_observation(p, None, 1)
+    with_normal.add_observation(p, n, 1)
+    x = np.random.default_rng(0).uniform([0.4, -0.1], [0.6, 0.1], (50, 2))
+    np.testing.assert_array_equal(with_nan.predict(x)[0], point_only.predict(x)[0])
+    assert np.abs(with_normal.predict(x)[0] - point_only.predict(x)[0]).max() > 1e-3
+    assert with_nan.n_rejected == 0

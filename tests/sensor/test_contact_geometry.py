@@ -137,3 +137,23 @@ def test_ring_contacts_carry_the_tip_height_exactly():
     d = np.array([0.0, 1.0, 0.0])
     res = approach(Cylinder(TIP0[:2] + 0.05 * d[:2], 0.035, dim=2), layout, model, d, seed=1)
     assert res.point_xyz[2] == TIP0[2]
+
+
+def test_hemisphere_side_contacts_keep_the_normal_only_below_the_rim():
+    """A horizontal approach: a vertical wall presses mid-band (normal kept, < 5 deg); a ball
+    met below its equator presses the band's upper rim, where the finger's horizontal normal
+    is up to 35 deg off the ball's: the point is kept (< 1.5 mm), the normal is reported unknown."""
+    layout = hemisphere_layout()
+    model = SensorModel(layout, seed=6)
+    d = np.array([1.0, 0.0, 0.0])
+    wall = Plane(TIP0 + 0.015 * d, -d)
+    res = approach(wall, layout, model, d)
+    assert abs(wall.sdf(res.point_xyz[None])[0]) < 0.001  # on the wall (at any height of the band)
+    assert np.degrees(np.arccos(res.normal_xyz @ -d)) < 5.0
+    for below_m in (0.015, 0.03):  # ball centre this far above the tip centre
+        ball = Sphere(TIP0 + [0.065, 0.0, below_m], 0.05)
+        res = approach(ball, layout, model, d, seed=1)
+        assert np.all(np.isnan(res.normal_xyz)), res.normal_xyz
+        assert abs(ball.sdf(res.point_xyz[None])[0]) < 0.0015
+        true_n = ball.gradient(res.point_xyz[None])[0]
+        assert np.degrees(np.arccos(true_n @ d * -1.0)) > 10.0  # the finger's normal would be this far off

@@ -22,6 +22,12 @@ Per frame (all taxel quantities vectorised over the N taxels):
    geometric one. With a ring layout (2D rig, no cap) the height is the
    band's mid height (z = 0 for the default rings: the tip centre), so 2D
    contacts carry exactly the tip's z.
+6. Rim (hemisphere layouts): a centre within ``rim_margin_m`` of the top of
+   the sensorised band means the object presses on the band's upper rim (an
+   object surface facing down, met by the side of the finger): the point is
+   good to ~1 mm but the geometric normal there is horizontal whatever the
+   surface's slope (up to 35° off in simulation), so the normal is reported
+   unknown (NaN) and the estimator uses the point alone.
 """
 
 from __future__ import annotations
@@ -49,10 +55,13 @@ class ContactConfig:
     calibration_frames: int = 40
     stuck_frames: int = 40
     neighbour_factor: float = 1.8  # neighbours: closer than factor x nearest-taxel distance
+    rim_margin_m: float = 0.001  # hemisphere: centre this close to the band top = rim contact, normal unknown
 
     def validate(self) -> "ContactConfig":
         if self.counts_per_newton <= 0:
             raise ValueError("counts_per_newton must be > 0")
+        if not self.rim_margin_m >= 0:
+            raise ValueError("rim_margin_m must be >= 0")
         if not 0 < self.off_threshold_n <= self.on_threshold_n:
             raise ValueError("need 0 < off_threshold_n <= on_threshold_n (hysteresis)")
         if self.calibration_frames < 2 or self.stuck_frames < 2:
@@ -160,6 +169,8 @@ class ContactDetector:
         point, normal = self.layout.project_to_surface(centre[None, :])
         if not np.all(np.isfinite(point)):
             return None  # a pressure centroid on the axis has no direction
+        if self.layout.hemisphere and centre[2] >= self.layout.axis_z_range_m[1] - self.config.rim_margin_m:
+            normal = np.full_like(normal, np.nan)  # on the rim: the surface's slope is not sensed
         self.in_contact = True
         return ContactEstimate(point_m=point[0], finger_normal=normal[0], force_n=self.force_n, n_active=self.n_active)
 

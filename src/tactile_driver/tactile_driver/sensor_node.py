@@ -56,6 +56,8 @@ PARAMS = {
     "contact.min_active_taxels": (2, "active taxels needed for a contact"),
     "contact.calibration_frames": (40, "frames of the start-up baseline (no contact!)"),
     "contact.stuck_frames": (40, "identical values for this many frames: a stuck taxel"),
+    "contact.rim_margin_m": (0.001, "hemisphere: a pressure centre this close to the top of the band is a rim "
+                                    "contact, published with an unknown (NaN) normal"),
 }
 
 
@@ -86,6 +88,7 @@ class TactileSensorNode(Node):
             off_threshold_n=p.contact_off_threshold_n, noise_gate_sigma=p.contact_noise_gate_sigma,
             min_noise_counts=p.contact_min_noise_counts, min_active_taxels=p.contact_min_active_taxels,
             calibration_frames=p.contact_calibration_frames, stuck_frames=p.contact_stuck_frames,
+            rim_margin_m=p.contact_rim_margin_m,
         )
         self.driver = SensorDriver(layout, contact, DriverConfig(
             max_frame_age_s=p.max_frame_age_s, pose_tolerance_s=p.pose_tolerance_s,
