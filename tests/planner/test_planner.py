@@ -93,7 +93,12 @@ def test_bad_input_gives_a_status_not_an_exception():
     planner = TouchPlanner.from_params(load_params(str(CONFIG)), seed=0)
     m = sphere_map(32, 2)
     tip = np.array([0.4, 0.0, 0.06])
-    assert planner.plan(m[m["kind"] == 0], tip).status == "no_candidates"
+    res = planner.plan(m[m["kind"] == 0], tip)
+    assert res.status == "no_candidates" and "prior" not in res.message  # the lattice still holds a shape
+    lost = m[m["kind"] == 0].copy()
+    lost["mean"] = np.abs(lost["mean"]) + 0.01  # misses lifted the whole mean above zero
+    res = planner.plan(lost, tip)
+    assert res.status == "no_candidates" and "prior.type 'given'" in res.message
     res = planner.plan(m[::-1], tip)
     assert res.status == "bad_map" and "before the candidates" in res.message
     shuffled = m.copy()

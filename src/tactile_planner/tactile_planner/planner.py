@@ -180,7 +180,12 @@ class TouchPlanner:
                                     lattice.variance_m2[sl], lattice.plane_z_m)
         m = len(cands)
         if m == 0:
-            return PlanResult("no_candidates", "the map has no touch candidates")
+            why = ""
+            if np.nanmin(lattice.mean_m) > 0:  # misses lifted the whole mean: the prior shape is gone
+                why = (": no lattice point is estimated inside the object (the touches so far missed it); "
+                       "give gpis_estimator a prior near the object (prior.type 'given', prior.centre_m, "
+                       "prior.radius_m)")
+            return PlanResult("no_candidates", "the map has no touch candidates" + why)
         normal = cands.normal.copy()
         if dim == 2:
             normal[:, 2] = 0.0
