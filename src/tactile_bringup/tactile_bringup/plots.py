@@ -38,9 +38,7 @@ def plot_progress(report: dict, path: Path, estimate_xy: Optional[np.ndarray] = 
     if estimate_xy is not None and len(estimate_xy):
         ax.plot(estimate_xy[:, 0], estimate_xy[:, 1], ".", ms=1.5, color="tab:blue", label="estimate")
     touches = report["touches"]
-    targets = np.array([t["target"][:2] for t in touches]) if touches else np.zeros((0, 2))
-    if len(targets):
-        ax.plot(targets[:, 0], targets[:, 1], "-", color="tab:orange", lw=0.8, alpha=0.7)
+    if touches:  # numbered in touch order (no lines: the finger's paths go around the object)
         for t in touches:
             p = t["contact"] if t["contact"] is not None else t["target"]
             ax.plot(p[0], p[1], "o" if t["contact"] is not None else "x",
@@ -49,7 +47,7 @@ def plot_progress(report: dict, path: Path, estimate_xy: Optional[np.ndarray] = 
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title("touches (o contact, x free space)" + (" — top view" if report["mode"] == "3d" else ""))
+    ax.set_title("touches in order (o contact, x free space)" + (" — top view" if report["mode"] == "3d" else ""))
     ax.legend(loc="upper right", fontsize=7)
     s = report["summary"]
     fig.suptitle(f"{report['object']} ({report['mode']}), {report['strategy']}, seed {report['seed']}: "
