@@ -67,6 +67,7 @@ class ExplorerNode(Node):
         self.exit_status = 0
         self.state = "waiting_for_start"
         self.last_tip_xyz: Optional[np.ndarray] = None
+        self.last_answer_t: Optional[float] = None  # monotonic time of the planner's last status
         self.t_state = time.monotonic()
         self.last_obs_stamp_ns = 0
         self.unreachable_in_row = 0
@@ -100,15 +101,21 @@ class ExplorerNode(Node):
 
         A request is sent once (it is not idempotent: each one makes a goal), so
         it must not go out before discovery has matched the planner; under load
-        that takes seconds. The recorder subscribes to everything: not counted.
+        that takes seconds. Seeing the planner's subscription in the graph is not
+        enough: our writer must have matched it too (else the reliable sample is
+        not kept for it and the request is lost), hence the publisher's own count.
+        The recorder subscribes to everything: not counted as a planner.
         """
-        planners = [i for i in self.get_subscriptions_info_by_topic(REQUEST) if i.node_name != "recorder"]
-        return bool(planners) and self.count_publishers(topics.TOUCH_DONE) > 0
+        subs = self.get_subscriptions_info_by_topic(REQUEST)
+        planners = [i for i in subs if i.node_name != "recorder"]
+        return (bool(planners) and self.pub_request.get_subscription_count() >= len(subs)
+                and self.count_publishers(topics.TOUCH_DONE) > 0)
 
     def on_goal(self, msg: PoseStamped) -> None:
         self.goals[stamp_ns(msg.header.stamp)] = msg
 
     def on_planner_status(self, msg: DiagnosticStatus) -> None:
+        self.last_answer_t = time.monotonic()
         values = {kv.key: kv.value for kv in msg.values}
         goal_stamp_ns = int(values.get("stamp_ns", "0") or 0)
         if "decision_ms" in values:
@@ -184,7 +191,9 @@ class ExplorerNode(Node):
             self.finish(self.start_failure())
             self.exit_status = 1
         elif self.state == "touching" and waited > self.p.touch_timeout_s:
-            self.finish(f"no touch ended within {self.p.touch_timeout_s:.0f} s")
+            answered = self.last_answer_t is not None and self.last_answer_t >= self.t_state
+            self.finish(f"no touch ended within {self.p.touch_timeout_s:.0f} s"
+                        + ("" if answered else " (the planner never answered the request)"))
             self.exit_status = 1
 
     def start_failure(self) -> str:
