@@ -138,8 +138,6 @@ class ArmCommanderNode(Node):
         else:
             self.get_logger().error(f"{what}: {task.reason}")
             self._start_state = "done"
-        if self._start_state == "done":
-            self.touches.hold = False
 
     def _on_goal(self, msg: PoseStamped) -> None:
         self._goals[arm_msgs.stamp_ns(msg.header.stamp)] = msg
