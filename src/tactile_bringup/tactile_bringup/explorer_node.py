@@ -198,11 +198,11 @@ class ExplorerNode(Node):
 
     def start_failure(self) -> str:
         """Why the first decision never went out, in the words a rig user acts on."""
-        start = np.round(self.exp.start_tip_xyz, 3).tolist()
         if self.last_tip_xyz is None:
             return (f"no fingertip pose on {topics.FINGERTIP_POSE} within {self.p.start_timeout_s:.0f} s "
                     "(is the arm commander running?)")
         if np.linalg.norm(self.last_tip_xyz - self.exp.start_tip_xyz) > self.p.start_tolerance_m:
+            start = np.round(self.exp.start_tip_xyz, 3).tolist()
             return (f"the fingertip never reached the start position {start} within {self.p.start_timeout_s:.0f} s: "
                     f"it is at {np.round(self.last_tip_xyz, 3).tolist()} (see the arm commander's log)")
         missing = "the planner" if self.count_publishers(topics.TOUCH_DONE) else "the arm commander's touch_done"

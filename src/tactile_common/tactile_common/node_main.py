@@ -57,11 +57,11 @@ def run_node(
         # A node that finishes its job by itself (e.g. the explorer) sets ``done``.
         while rclpy.ok() and not stop_requested and not getattr(node, "done", False):
             ex.spin_once(timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:  # the context was shut down outside the loop: a normal end
         pass
     except Exception:  # noqa: BLE001
-        # SIGINT/SIGTERM shut the context down from the signal handler; a wait or
-        # publish already under way then fails with an RCLError: a normal end.
+        # A node may shut its own context down when its job is done (the player):
+        # a wait or publish already under way then fails with an RCLError, a normal end.
         if rclpy.ok():
             raise
     finally:

@@ -237,7 +237,7 @@ class ArmCommander:
             return self._reject(kind, f"busy with {self._task.kind}")
         if self.estop.engaged:
             return self._reject(kind, "e-stop engaged")
-        if not self.cfg.dry_run and (self.q is None or self.watchdog.is_stale(self._steady_s())):
+        if (self.q is None and not self.cfg.dry_run) or self.watchdog_stale():
             return self._reject(kind, "no recent joint state", joint_states_lost=True)
         try:
             traj = self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
