@@ -44,7 +44,8 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     g.start("sim", SIM)
     g.start("arm", ARM + NO_START)
-    g.wait_for(lambda: len(poses) > 5, 30, "fingertip poses")
+    g.wait_for(lambda: len(poses) > 5 and done.publishers and contacts.publishers and trajs.publishers, 30,
+               "fingertip poses and the commander's writers")
     # Far from the object (circle at (0.5, 0)): the approach ends in free space.
     pre, direction = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])
     path = np.array([[0.50, 0.0, 0.35], [0.42, 0.12, 0.10], pre])
@@ -93,6 +94,7 @@ def test_moves_to_the_start_position_over_the_object_then_touches(ros_graph):
     def tip(m):
         return np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
 
+    g.wait_for(lambda: done.publishers, 30, "the commander's touch_done writer")
     # A goal sent before the tip is at the start waits for it.
     _publish_touch(g, np.array([0.33, 0.0, 0.06]), np.array([0.0, 1.0, 0.0]), [[0.33, 0.0, 0.06]], 6)
     g.wait_for(lambda: poses and np.linalg.norm(tip(poses[-1]) - start) < 3e-3, 30, "tip at the start position")

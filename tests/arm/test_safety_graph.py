@@ -13,6 +13,7 @@ from std_msgs.msg import Bool
 from trajectory_msgs.msg import JointTrajectory
 
 from tactile_common import qos, topics
+from tactile_common.testing import Received
 
 from graph_helpers import done_values, goal_and_path
 
@@ -43,8 +44,9 @@ class TouchPublisher:
 
 def _timed(graph, topic, msg_type, profile):
     """Messages with their wall arrival times."""
-    out = []
-    graph.node.create_subscription(msg_type, topic, lambda m: out.append((time.monotonic(), m)), profile)
+    out = Received()
+    out.subscription = graph.node.create_subscription(msg_type, topic, lambda m: out.append((time.monotonic(), m)),
+                                                      profile)
     return out
 
 
@@ -54,6 +56,7 @@ def test_dry_run_plans_and_publishes_no_trajectory(ros_graph):
     planned = g.collect("/arm_commander/planned_trajectory", JointTrajectory, qos.EVENTS)
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "dry_run:=true"])
+    g.wait_for(lambda: planned.publishers and done.publishers, 20, "the commander's writers")
     TouchPublisher(g).send(5)
     # touch_done and the planned trajectories travel on different topics: wait for both.
     g.wait_for(lambda: done and len(planned) >= 3, 20, "touch_done and three planned trajectories")
@@ -79,7 +82,8 @@ def test_estop_during_approach_stops_the_rig_within_a_control_period(ros_graph):
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "use_sim_time:=true", "-p", "watchdog_timeout_s:=2.0"])
     estop = g.node.create_publisher(Bool, topics.ESTOP, qos.LATCHED)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
-    g.wait_for(lambda: len(poses) > 5 and len(states) > 5, 30, "joint states and fingertip poses")
+    g.wait_for(lambda: len(poses) > 5 and len(states) > 5 and sent.publishers and done.publishers, 30,
+               "joint states, fingertip poses and the commander's writers")
     TouchPublisher(g).send(7)
     g.wait_for(lambda: len(sent) >= 2, 40, "the approach trajectory")  # path, then approach
     t_approach = time.monotonic()
@@ -117,7 +121,7 @@ def test_stale_joint_states_stop_motion(ros_graph):
     g.node.create_timer(0.01, lambda: feeding["on"] and js_pub.publish(js))
     timeout_s = 0.3
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", f"watchdog_timeout_s:={timeout_s}"])
-    g.wait_for(lambda: js_pub.get_subscription_count(), 20, "commander")
+    g.wait_for(lambda: js_pub.get_subscription_count() and sent.publishers and done.publishers, 20, "commander")
     t_up = time.monotonic()
     g.wait_for(lambda: time.monotonic() > t_up + 0.3, 5, "joint states to flow")
     TouchPublisher(g).send(11)

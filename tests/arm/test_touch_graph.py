@@ -45,7 +45,8 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
                     "-p", "watchdog_timeout_s:=2.0"])  # a loaded shared test machine stalls processes
     goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
     path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)
-    g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count(),
+    g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count()
+               and contacts.publishers >= 2 and done.publishers,  # driver and commander both publish contacts
                30, "graph up (driver calibrating)")
     # Candidate on the circle at 150 deg; the pre-touch point stands off along the normal.
     n = np.array([math.cos(2.6), math.sin(2.6), 0.0])

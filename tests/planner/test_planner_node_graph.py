@@ -41,8 +41,9 @@ def test_goal_and_path_for_a_request(ros_graph):
     tip.header.frame_id = "world"
     tip.pose.position.x, tip.pose.position.y, tip.pose.position.z = 0.40, -0.10, 0.06
     # request before the map exists: the planner must wait for a map with stamp >= 5 s
-    ros_graph.wait_for(lambda: pub_req.get_subscription_count() > 0 and pub_tip.get_subscription_count() > 0,
-                       20, "planner subscriptions")
+    ros_graph.wait_for(lambda: pub_req.get_subscription_count() > 0 and pub_tip.get_subscription_count() > 0
+                       and goals.publishers and paths.publishers and status.publishers,
+                       20, "planner subscriptions and writers")
     pub_req.publish(Header(stamp=Time(sec=5)))
     pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=1)))  # too old
     pub_tip.publish(tip)

@@ -37,8 +37,10 @@ class PoseScript:
         self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
         graph.node.create_timer(0.01, self.publish)
 
-    def wait_for_subscribers(self):
-        self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2, 20, "pose subscribers")
+    def wait_for_subscribers(self, contacts):
+        """The device and the driver hear the poses; the test hears the driver's contacts."""
+        self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2 and contacts.publishers, 20,
+                            "pose subscribers and the contact writer")
 
     def go(self):
         self.t_go = self.graph.node.get_clock().now().nanoseconds * 1e-9
@@ -94,7 +96,7 @@ def test_contact_from_simulated_device_through_the_driver(ros_graph, tmp_path):
     start_nodes(ros_graph, link)
     ros_graph.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 20, "calibration")
     assert not contacts
-    script.wait_for_subscribers()  # the device and the driver both hear the poses
+    script.wait_for_subscribers(contacts)
     script.go()
     ros_graph.wait_for(lambda: contacts, 10, "a contact")
     ros_graph.wait_for(lambda: diags and int(diag_values(diags[-1])["contacts"]) >= 1, 5, "diagnostics")
@@ -129,7 +131,7 @@ def test_faults_are_counted_and_give_no_false_contact(ros_graph, tmp_path):
     assert not contacts, "faults must never produce a contact"
     assert any(m.status[0].level != b"\x00" for m in diags), "faults raise the diagnostics level"
     # the driver still senses correctly after all that
-    script.wait_for_subscribers()  # the device and the driver both hear the poses
+    script.wait_for_subscribers(contacts)
     script.go()
     ros_graph.wait_for(lambda: contacts, 10, "a contact after the faults")
     check_contact(contacts[0], direction)
@@ -146,7 +148,7 @@ def test_3d_contact_on_a_sphere_with_the_hemispherical_tip(ros_graph, tmp_path):
     script.dir = direction
     start_nodes(ros_graph, link, mode="3d")
     ros_graph.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 20, "calibration")
-    script.wait_for_subscribers()  # the device and the driver both hear the poses
+    script.wait_for_subscribers(contacts)
     script.go()
     ros_graph.wait_for(lambda: contacts, 10, "a contact")
     pts = from_pointcloud2(contacts[0])

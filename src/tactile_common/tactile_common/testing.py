@@ -38,6 +38,25 @@ class GraphTestError(AssertionError):
     """A wait timed out or a node process died; the message says which."""
 
 
+class Received(list):
+    """Messages a test subscription has received, plus its matched writers.
+
+    DDS matches each writer to each reader on its own: seeing messages from one
+    node says nothing about another node's writer on a different topic. A test
+    that expects a one-off message waits on ``publishers`` first, so the
+    message cannot be published before the test's reader is matched (and lost).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.subscription = None
+
+    @property
+    def publishers(self) -> int:
+        """Writers matched to this subscription now."""
+        return self.subscription.get_publisher_count()
+
+
 class DomainLease:
     """Exclusive use of one ROS_DOMAIN_ID across processes (a file lock)."""
 
@@ -185,10 +204,10 @@ class RosGraph:
                 raise GraphTestError(f"timed out after {timeout_s:.0f} s waiting for {what}\n{self.logs()}")
             self.spin_once(0.05)
 
-    def collect(self, topic: str, msg_type: Any, qos: QoSProfile, raw: bool = False) -> list:
+    def collect(self, topic: str, msg_type: Any, qos: QoSProfile, raw: bool = False) -> Received:
         """Subscribe now; the returned list fills with messages as the test spins."""
-        received: list = []
-        self.node.create_subscription(msg_type, topic, received.append, qos, raw=raw)
+        received = Received()
+        received.subscription = self.node.create_subscription(msg_type, topic, received.append, qos, raw=raw)
         return received
 
     def wait_for_message(
