@@ -80,6 +80,12 @@ def test_node_maps_contacts(ros_graph):
     near_c = np.argmin(((cpts[:, None] - contacts[None]) ** 2).sum(-1), axis=0)
     assert (cand["variance"][near_c] < 0.1 * prior_arr["variance"].max()).all()
     assert ros_graph.procs["gpis"].alive()
+    # An observation older than the newest one (a slower publisher: the driver's contact arriving
+    # after the commander's free-space point) still gives a map stamped with the newest stamp.
+    n_before = len(maps)
+    pub.publish(to_pointcloud2(contact(0.7), "world", stamp_of(11)))
+    ros_graph.wait_for(lambda: len(maps) > n_before, 20, "the map of the late observation")
+    assert maps[-1].header.stamp.sec == 12
 
     client = ros_graph.node.create_client(Trigger, "/gpis_estimator/reset")
     ros_graph.wait_for(client.service_is_ready, 20, "the reset service")

@@ -6,8 +6,10 @@ Publishes   /gpis/variance_map (PointCloud2, VARIANCE_MAP_DTYPE, MAP latched)
 Service     ~/reset (std_srvs/Trigger)
 Parameters  tactile_gpis.estimator.PARAMETERS (config/gpis_estimator.yaml)
 
-One map per contacts message (accepted or rejected), stamped with that message's
-header.stamp; the prior map at start has stamp 0.
+One map per contacts message (accepted or rejected), stamped with the newest
+header.stamp received so far (map stamps never go back: a contact that arrives
+after a newer observation, from a slower publisher, still yields a map at least
+as new as everything it holds); the prior map at start has stamp 0.
 """
 
 from __future__ import annotations
@@ -53,7 +55,8 @@ class GpisEstimatorNode(Node):
 
     def on_contacts(self, msg: PointCloud2) -> None:
         self.n_received += 1
-        self.stamp = msg.header.stamp
+        if (msg.header.stamp.sec, msg.header.stamp.nanosec) > (self.stamp.sec, self.stamp.nanosec):
+            self.stamp = msg.header.stamp
         for ok, reason in self.add_cloud(msg):
             if not ok:
                 self.n_rejected += 1
