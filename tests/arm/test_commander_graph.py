@@ -5,14 +5,16 @@ from pathlib import Path as FsPath
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory
 
 from tactile_common import fields, qos, topics
-from tactile_common.pointcloud import from_pointcloud2
+from tactile_common.pointcloud import from_pointcloud2, to_pointcloud2
 
 from graph_helpers import done_values, goal_and_path
 
@@ -104,3 +106,38 @@ def test_moves_to_the_start_position_over_the_object_then_touches(ros_graph):
     assert np.all(np.linalg.norm(xyz[low, :2] - [0.5, 0.0], axis=1) > 0.1)
     g.wait_for(lambda: done, 30, "the queued touch")
     assert done[0].message == "free_space"
+
+
+def test_a_contact_still_on_its_way_at_the_end_of_the_approach_is_not_taken_for_free_space(ros_graph):
+    """The driver's contact for a frame just before full depth can arrive after the approach ends:
+    the commander waits ``contact_latency_s`` before it calls the probe a miss."""
+    g = ros_graph
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
+    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    clock = g.collect(topics.CLOCK, Clock, qos.CLOCK)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.start("sim", SIM)
+    g.start("arm", ARM + NO_START + ["-p", "contact_latency_s:=4.0"])  # 1 s of wall time at x4
+    contact_pub = g.node.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
+    g.wait_for(lambda: clock and len(poses) > 5 and done.publishers and trajs.publishers
+               and contact_pub.get_subscription_count(), 30, "the rig's clock and the commander's joint states")
+    pre, direction = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])
+    _publish_touch(g, pre, direction, [[0.42, 0.12, 0.10], pre], 3_000_000_000)
+    g.wait_for(lambda: len(trajs) >= 2, 40, "the approach trajectory")
+
+    def sim_s():
+        return clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9
+
+    end_s = sim_s() + trajs[1].points[-1].time_from_start.sec + trajs[1].points[-1].time_from_start.nanosec * 1e-9
+    g.wait_for(lambda: sim_s() > end_s + 0.5, 20, "the end of the approach")
+    assert not done  # no free-space verdict yet
+    late = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+    late["x"], late["y"], late["z"], late["label"] = pre[0], pre[1] + APPROACH_M, pre[2], fields.LABEL_CONTACT
+    stamp_ns = int((end_s - 0.05) * 1e9)
+    contact_pub.publish(to_pointcloud2(late, topics.WORLD_FRAME, Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
+    g.wait_for(lambda: done, 30, "touch_done")
+    v = done_values(done[0])
+    assert done[0].message == "contact", v
+    assert int(v["observation_stamp_ns"]) == stamp_ns
+    assert all(from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT for m in contacts)  # no free-space point

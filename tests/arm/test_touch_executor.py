@@ -5,6 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from tactile_common import fields
 from tactile_driver.commander_api import TaskResult
 from tactile_driver.safety import EStopLatch, OutsideWorkspace
 from tactile_driver.touch_executor import TouchExecutor, TouchRequest
@@ -41,13 +42,20 @@ class FakeArm:
         return _traj(0.1)
 
     def _verb(self, name, length):
+        """A result, or (result, contact xyz) for a verb stopped by a contact."""
         self.calls.append(name)
-        result = self.results.pop(0)
+        result, contact = self.results.pop(0), None
+        if isinstance(result, tuple):
+            result, xyz = result
+            contact = np.zeros((), dtype=fields.CONTACT_DTYPE)[()]
+            contact["x"], contact["y"], contact["z"], contact["label"] = *xyz, fields.LABEL_CONTACT
         if result == TaskResult.REJECTED:
-            self._last = SimpleNamespace(result=result, reason="refused", traj=_traj(0.0), contact_stamp_ns=0)
+            self._last = SimpleNamespace(result=result, reason="refused", traj=_traj(0.0), contact_stamp_ns=0,
+                                         contact=None)
             return False
         self.odometer_m += length
-        self._last = SimpleNamespace(result=result, reason=result.name, traj=_traj(length), contact_stamp_ns=42)
+        self._last = SimpleNamespace(result=result, reason=result.name, traj=_traj(length), contact=contact,
+                                     contact_stamp_ns=42 if contact is not None or result == TaskResult.CONTACT else 0)
         return True
 
     def follow_path(self, path):
@@ -58,6 +66,10 @@ class FakeArm:
 
     def retract(self):
         return self._verb("retract", 0.02)
+
+    def back_off(self, contact_xyz, clearance_m):
+        self.back_off_args = (np.asarray(contact_xyz), clearance_m)
+        return self._verb("back_off", 0.01)
 
     def is_task_complete(self):
         return True
@@ -120,6 +132,24 @@ def test_aborts_end_the_touch(results, where):
     free, done = run(arm)
     assert done[0].outcome == "aborted" and done[0].reason.startswith(where)
     assert len(done) == 1 and arm.results == []
+
+
+def test_contact_on_the_path_is_kept_and_the_arm_backs_off():
+    arm = FakeArm([(TaskResult.ABORTED, [0.45, 0.1, 0.06]), TaskResult.SUCCEEDED])
+    free, done = run(arm)
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "back_off"]  # no approach, no retract
+    np.testing.assert_allclose(arm.back_off_args[0], [0.45, 0.1, 0.06])
+    assert arm.back_off_args[1] == 0.01  # the clearance (commander: standoff_m)
+    r = done[0]
+    assert (r.outcome, r.observation_stamp_ns) == ("contact", 42) and r.reason.startswith("path:")
+    assert free == [] and r.travel_m == pytest.approx(0.31)
+
+
+@pytest.mark.parametrize("back_off, where", [(TaskResult.REJECTED, "path"), (TaskResult.ABORTED, "retract")])
+def test_a_failed_back_off_aborts(back_off, where):
+    arm = FakeArm([(TaskResult.ABORTED, [0.45, 0.1, 0.06]), back_off])
+    free, done = run(arm)
+    assert done[0].outcome == "aborted" and done[0].reason.startswith(where) and len(done) == 1
 
 
 def test_estop_during_dwell_skips_the_retract():

@@ -10,6 +10,7 @@ call ``wait_until_complete(timeout_s)`` from a script that owns the node.
     arm.approach(direction_xyz, max_depth_m)   # stops on the first contact
     ...
     arm.retract()                              # back to where the approach began
+    arm.back_off(contact_xyz, clearance_m)     # away from a contact met on a path
 
 Everything goes through two topics: JointTrajectory out (a new trajectory
 replaces the current one; an empty one stops and holds) and JointState in.
@@ -80,6 +81,7 @@ class CommanderConfig:
     max_tilt_rad: float = 0.10
     goal_tolerance_rad: float = 0.002
     goal_time_tolerance_s: float = 2.0
+    contact_latency_s: float = 0.25
     watchdog_timeout_s: float = 0.5
     control_period_s: float = 0.01
     dry_run: bool = False
@@ -168,6 +170,23 @@ class ArmCommander:
         if self.approach_origin_xyz is None:
             return self._reject("retract", "no approach to retract from")
         return self._start("retract", self.approach_origin_xyz[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+
+    def back_off(self, contact_xyz: np.ndarray, clearance_m: float) -> bool:
+        """Straight away from a contact the tip is on, at approach speed (world frame).
+
+        Target: c + (tip_radius_m + clearance_m)·u with c the contact point and
+        u = (tip − c)/|tip − c| (for a round fingertip, the object's outward
+        normal there, whatever the driver made of it): the tip ends
+        ``clearance_m`` off the surface. Contacts are ignored while backing off.
+        """
+        c = np.asarray(contact_xyz, dtype=float).reshape(3)
+        tip = self._plan_start()[1]
+        away = tip - c
+        n = np.linalg.norm(away)
+        if not (np.all(np.isfinite(c)) and n > 1e-6 and clearance_m >= 0):
+            return self._reject("back_off", "needs a finite contact point away from the tip centre and clearance >= 0")
+        target = c + (self.cfg.tip_radius_m + clearance_m) * away / n
+        return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
 
     def stop(self) -> None:
         """Stop now and hold (empty trajectory); the current task ends CANCELED."""
@@ -304,7 +323,7 @@ class ArmCommander:
             self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
             return
         task = self._task
-        if task is None or task.kind == "retract":
+        if task is None or task.kind in ("retract", "back_off"):  # moving off the surface
             return
         stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
         hits = points[points["label"] == fields.LABEL_CONTACT]
@@ -345,6 +364,8 @@ class ArmCommander:
         if elapsed < task.traj.duration_s:
             return
         err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
+        if task.kind == "approach" and elapsed < task.traj.duration_s + self.cfg.contact_latency_s:
+            return  # a contact sensed near the end may still be on its way from the driver
         if err <= self.cfg.goal_tolerance_rad:
             self._finish(TaskResult.SUCCEEDED, f"{task.traj.length_m:.3f} m in {elapsed:.2f} s")
         elif elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:

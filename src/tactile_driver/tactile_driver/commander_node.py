@@ -55,6 +55,8 @@ PARAMS = {
     "max_tilt_rad": (_D.max_tilt_rad, "max finger tilt from vertical"),
     "goal_tolerance_rad": (_D.goal_tolerance_rad, "joint error accepted at the end of a trajectory"),
     "goal_time_tolerance_s": (_D.goal_time_tolerance_s, "extra time to reach it before aborting"),
+    "contact_latency_s": (_D.contact_latency_s, "an approach that reached full depth waits this long (node "
+                          "clock) for a contact still on its way from the sensor before it counts as free space"),
     "watchdog_timeout_s": (_D.watchdog_timeout_s, "joint states older than this (steady clock) stop motion"),
     "control_period_s": (_D.control_period_s, "watchdog / completion check period (steady clock)"),
     "move_to_start": (True, "at start-up move the tip to start_tip_xyz_m (the explorer waits for it there)"),
@@ -75,7 +77,8 @@ class ArmCommanderNode(Node):
         except KinematicsError as exc:
             raise ValueError(str(exc)) from None
         self.touches = TouchExecutor(self.arm, p.standoff_m + p.tip_radius_m + p.max_depth_m, p.dwell_s,
-                                     self._publish_free_space, self._publish_done)
+                                     self._publish_free_space, self._publish_done,
+                                     back_off_clearance_m=p.standoff_m)
         self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
         self._pub_done = self.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
         self._goals: dict[int, PoseStamped] = {}

@@ -6,7 +6,10 @@ Validation plans the whole touch first (path, then the approach from the
 path's end configuration; box + IK): an infeasible touch is reported as
 ``unreachable`` and nothing moves. An approach that reaches its depth
 without contact publishes the free-space point (tip centre, label 0).
-Any abort (e-stop, stale joint states, time-out) ends the touch as
+A contact on the path (the map said free space there) is an observation
+like any other: the arm stops, backs off the surface (``back_off``) and the
+touch ends as ``contact`` (reason ``path: unexpected contact ...``).
+Any other abort (e-stop, stale joint states, time-out) ends the touch as
 ``aborted``. In dry-run mode the three motions are planned and published
 for inspection only and the touch ends as ``aborted`` (reason ``dry_run``).
 No message handling here: the node passes the commander and two publish callbacks.
@@ -20,6 +23,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from tactile_common import fields
 from tactile_driver.commander_api import ArmCommander, TaskResult
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError
@@ -62,12 +66,13 @@ class TouchExecutor:
 
     def __init__(self, arm: ArmCommander, approach_length_m: float, dwell_s: float,
                  publish_free_space: Callable[[np.ndarray, int], None],
-                 publish_done: Callable[[TouchReport], None]) -> None:
+                 publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01) -> None:
         if approach_length_m <= 0:
             raise ValueError("approach length (standoff + tip radius + max depth) must be positive")
         self.arm = arm
         self.approach_length_m = float(approach_length_m)
         self.dwell_s = float(dwell_s)
+        self.back_off_clearance_m = float(back_off_clearance_m)
         self._publish_free_space = publish_free_space
         self._publish_done = publish_done
         self.queue: deque[TouchRequest] = deque()
@@ -78,6 +83,7 @@ class TouchExecutor:
         self._odo0_m = 0.0
         self._dwell_until_s = 0.0
         self._outcome = ""
+        self._reason = ""
         self._obs_stamp_ns: Optional[int] = None
         self._travel_planned_m = 0.0
 
@@ -99,6 +105,8 @@ class TouchExecutor:
             return
         result, task = arm.get_result(), arm.last_task
         if self._state == "path":
+            if result == TaskResult.ABORTED and task.contact is not None and not arm.estop.engaged:
+                return self._back_off(task)
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"path: {task.reason}")
             self._travel_planned_m += task.traj.length_m
@@ -132,11 +140,11 @@ class TouchExecutor:
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"retract: {task.reason}")
             self._travel_planned_m += task.traj.length_m
-            self._done(self._outcome, "dry_run: planned, not executed" if arm.cfg.dry_run else "")
+            self._done(self._outcome, "dry_run: planned, not executed" if arm.cfg.dry_run else self._reason)
 
     def _begin(self, req: TouchRequest) -> None:
         self._req, self._t0_s, self._odo0_m = req, self.arm.now_s(), self.arm.odometer_m
-        self._obs_stamp_ns, self._outcome, self._travel_planned_m = None, "", 0.0
+        self._obs_stamp_ns, self._outcome, self._reason, self._travel_planned_m = None, "", "", 0.0
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
         try:  # plan the whole touch before moving
             to_goal = self.arm.plan(path)
@@ -148,6 +156,15 @@ class TouchExecutor:
         if not self.arm.follow_path(path):
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
+
+    def _back_off(self, task) -> None:
+        """The path met the object where the map said free space: keep the contact, leave the surface."""
+        self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, task.contact_stamp_ns
+        self._reason = f"path: {task.reason}"
+        contact_xyz = fields.xyz(np.atleast_1d(task.contact))[0]
+        if not self.arm.back_off(contact_xyz, self.back_off_clearance_m):
+            return self._done(OUTCOME_ABORTED, f"path: {task.reason}; back_off: {self.arm.last_task.reason}")
+        self._state = "retract"
 
     def _done(self, outcome: str, reason: str) -> None:
         req = self._req
