@@ -91,3 +91,29 @@ def test_tiny_benchmark_grid(tmp_path, capsys):
     assert "| circle | proposed | 1 |" in md and "Whole suite" in md
     for name in ("iou_vs_travel.png", "iou_vs_time.png", "gallery.png"):
         assert (tmp_path / name).stat().st_size > 1000
+
+
+def test_a_path_through_the_object_stops_on_its_surface_and_backs_off():
+    """SimulatedFinger.path_contact against the analytic circle (radius 4 cm at (0.5, 0))."""
+    exp = Experiment(mode="2d", object_name="circle", strategy="proposed", touches=1, seed=0)
+    loop = ExplorationLoop(exp)
+    finger, circle = loop.finger, make_object("circle", mode="2d")
+    z = exp.gpis_params["plane_z_m"]
+    # A path that passes 1 cm clear of the finger's skin: no contact.
+    clear_y = 0.04 + exp.planner_params["tip_radius_m"] + 0.01
+    assert finger.path_contact(np.array([[0.40, clear_y, z], [0.60, clear_y, z]]), 0) is None
+    # A path with a corner whose second leg crosses the circle off-centre.
+    path = np.array([[0.40, 0.10, z], [0.45, 0.02, z], [0.60, 0.02, z]])
+    free_m, result, back = finger.path_contact(path, 0)
+    assert result.contact
+    p = result.point_xyz
+    assert abs(circle.sdf(np.array([p[:2]]))[0]) < 2e-3  # on the true surface
+    expected = np.array([0.5 - np.sqrt(0.04**2 - 0.02**2), 0.02])  # where the leg meets the circle
+    assert np.linalg.norm(p[:2] - expected) < 0.01  # the finger meets it a little earlier (its radius)
+    first_leg = np.linalg.norm(path[1] - path[0])
+    # Sensed from the last sample whose skin was clear (its bounding radius is larger than the finger's).
+    assert first_leg - 0.02 < free_m < first_leg + (expected[0] - 0.45)
+    # Backed off: the tip centre at tip radius + standoff from the contact point, clear of the object.
+    back_off_m = exp.planner_params["tip_radius_m"] + exp.planner_params["standoff_m"]
+    assert np.linalg.norm(back - p) == pytest.approx(back_off_m)
+    assert circle.sdf(np.array([back[:2]]))[0] > exp.planner_params["tip_radius_m"] + 0.5 * exp.planner_params["standoff_m"]

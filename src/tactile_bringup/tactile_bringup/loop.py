@@ -2,7 +2,8 @@
 
 estimate → candidates → plan → move along the path → guarded approach along
 −normal until the finger's surface meets the object (contact) or a maximum
-depth (free space) → retract → update. It uses the same cores with the same
+depth (free space) → retract → update; a path that meets the object stops on
+that contact and backs off (the arm commander's behaviour). It uses the same cores with the same
 parameters as the nodes (``ShapeEstimator`` = gpis_estimator,
 ``TouchPlanner`` = soc_planner, ``simulate_approach`` with the driver's
 ``ContactDetector`` = sim_rig + tactile_sensor + arm_commander), so a seed and
@@ -79,12 +80,22 @@ class ExplorationLoop:
             if not plan.ok:
                 stopped = f"planner: {plan.status}: {plan.message}"
                 break
-            # Move from the tip along the path, approach along −normal, retract.
-            path_m = polyline_length_m(np.vstack([tip[None, :], plan.path_xyz]))
-            result = self.finger.approach(plan.pretouch_xyz, -np.asarray(plan.normal_xyz), len(touches))
-            travel_m += path_m + 2.0 * result.travel_m
-            time_s += self.motion.touch_time_s(path_m, result.travel_m)
-            tip = np.asarray(plan.pretouch_xyz, dtype=float)
+            # Move from the tip along the path, approach along −normal, retract. A path that
+            # meets the object (the estimate was too small there) stops on the contact and
+            # backs off from it, as the arm commander does.
+            path = np.vstack([tip[None, :], plan.path_xyz])
+            hit = self.finger.path_contact(path, len(touches))
+            if hit is None:
+                path_m = polyline_length_m(path)
+                result = self.finger.approach(plan.pretouch_xyz, -np.asarray(plan.normal_xyz), len(touches))
+                travel_m += path_m + 2.0 * result.travel_m
+                time_s += self.motion.touch_time_s(path_m, result.travel_m)
+                tip = np.asarray(plan.pretouch_xyz, dtype=float)
+            else:
+                free_m, result, tip = hit
+                back_m = float(np.linalg.norm(tip - result.tip_xyz_at_stop))
+                travel_m += free_m + result.travel_m + back_m
+                time_s += self.motion.path_contact_time_s(free_m + result.travel_m, back_m)
             t1 = time.perf_counter()
             point = result.point_xyz if result.contact else result.tip_xyz_at_stop
             observe(self.estimator, point, result.normal_xyz, result.contact)

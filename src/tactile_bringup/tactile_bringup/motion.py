@@ -30,6 +30,10 @@ class MotionModel:
         """Time of one touch: path, approach and retract (approach_m each way), dwell."""
         return path_m / self.tip_speed_mps + 2.0 * approach_m / self.approach_speed_mps + self.dwell_s
 
+    def path_contact_time_s(self, path_m: float, back_off_m: float) -> float:
+        """Time of a touch whose path met the object: path to the contact, back-off at approach speed."""
+        return path_m / self.tip_speed_mps + back_off_m / self.approach_speed_mps
+
 
 def polyline_length_m(points_xyz: np.ndarray) -> float:
     """Length of a polyline given as (K, 3) points (0 for fewer than two)."""

@@ -10,14 +10,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Optional
 
 import numpy as np
 
 from tactile_common.params_file import package_config
 from tactile_driver.contact import ContactConfig, ContactDetector
 from tactile_driver.taxels import TaxelLayout, load_layout
-from tactile_sim.sensor_model import SensorModel, SensorModelConfig
+from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
 
 
@@ -46,6 +46,8 @@ class SimulatedFinger:
     step_m: float
     max_travel_m: float
     seed: int
+    path_step_m: float = 0.0005  # tip travel per sensor frame on a free-space path (tip speed / frame rate)
+    back_off_m: float = 0.02  # tip centre to a contact after backing off (tip radius + standoff)
 
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
@@ -58,7 +60,9 @@ class SimulatedFinger:
         frame_rate_hz = float(sim.get("sensor_frame_rate_hz", 200.0))
         step_m = float(planner.get("approach_speed_mps", 0.02)) / frame_rate_hz
         max_travel_m = (float(planner.get("standoff_m", 0.01)) + float(planner.get("max_depth_m", 0.02)))
-        return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed))
+        path_step_m = float(planner.get("tip_speed_mps", 0.1)) / frame_rate_hz
+        back_off_m = layout.tip_radius_m + float(planner.get("standoff_m", 0.01))
+        return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m)
 
     def approach(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, touch_index: int) -> ApproachResult:
         """One guarded approach from the pre-touch point; the noise is seeded per touch."""
@@ -69,3 +73,42 @@ class SimulatedFinger:
         # Retract: the finger leaves the object, so the detector's hysteresis releases.
         self.detector.update(self.model.frame(self.obj, start, np.eye(3), rng))
         return result
+
+    def path_contact(self, path_xyz: np.ndarray, touch_index: int,
+                     sample_m: float = 0.002) -> Optional[tuple[float, ApproachResult, np.ndarray]]:
+        """Where a free-space path (K, 3) first meets the object, sensed as the arm commander does.
+
+        The path is sampled every ``sample_m``; the first sample where the skin
+        would carry force is the collision. From the last sample whose skin is
+        clear of the object (sdf of the centre > the skin's bounding radius) the
+        finger moves towards it one frame at path speed at a time, with the
+        driver's detector. Returns (path length before that free sample, the
+        contact, the tip after backing off ``back_off_m`` from the contact point
+        along tip − contact), or None when the path stays free.
+        """
+        P = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        if len(P) < 2 or seg.sum() <= 0:
+            return None
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        s = np.append(np.arange(0.0, cum[-1], sample_m), cum[-1])
+        pts = np.column_stack([np.interp(s, cum, P[:, i]) for i in range(3)])
+        clear = world_sdf(self.obj, pts) > self.model.bounding_radius_m
+        for k in np.nonzero(~clear)[0]:
+            if self.model.force_n(self.obj, pts[k]) > 0.0:
+                break
+        else:
+            return None
+        free = np.nonzero(clear[:k])[0]
+        if len(free) == 0:
+            return None  # starts in contact: nothing to sense a path collision from
+        j = free[-1]
+        rng = np.random.default_rng([self.seed, touch_index, 1])
+        result = simulate_approach(self.obj, self.model.layout, self.model, self.detector, pts[j], pts[k] - pts[j],
+                                   float(s[k] - s[j]) + 0.005, self.path_step_m, rng=rng)
+        if not result.contact:
+            return None
+        away = result.tip_xyz_at_stop - result.point_xyz
+        back = result.point_xyz + self.back_off_m * away / np.linalg.norm(away)
+        self.detector.update(self.model.frame(self.obj, back, np.eye(3), rng))  # off the surface: release
+        return float(s[j]), result, back

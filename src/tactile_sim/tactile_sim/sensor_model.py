@@ -74,12 +74,12 @@ class SensorModel:
     def sample_forces_n(self, obj: Any, position_m: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Indices and forces (N) of the surface samples inside the object."""
         p = np.asarray(position_m, dtype=float)
-        if _sdf(obj, p[None, :])[0] > self.bounding_radius_m:  # sdf is 1-Lipschitz
+        if world_sdf(obj, p[None, :])[0] > self.bounding_radius_m:  # sdf is 1-Lipschitz
             return np.zeros(0, dtype=np.int64), np.zeros(0)
         R = np.asarray(rotation, dtype=float)
         # sdf(x) >= sdf(c) - |x - c|: a cluster whose centre is farther out than its radius is free.
         centres = p + self.layout.positions_m @ R.T
-        near = _sdf(obj, centres) < self._cluster_radius_m
+        near = world_sdf(obj, centres) < self._cluster_radius_m
         cand = np.nonzero(near[self._cluster_of])[0]
         if cand.size == 0:
             return cand, np.zeros(0)
@@ -87,7 +87,7 @@ class SensorModel:
             groups, inverse = np.unique(self._xy_group[cand], return_inverse=True)
             depth = -np.asarray(obj.sdf(p[:2] + self._xy_unique[groups] @ R[:2, :2].T), dtype=float)[inverse.reshape(-1)]
         else:
-            depth = -_sdf(obj, p + self._samples_m[cand] @ R.T)
+            depth = -world_sdf(obj, p + self._samples_m[cand] @ R.T)
         inside = depth > 0
         idx = cand[inside]
         return idx, self.config.stiffness_pa_per_m * depth[inside] * self._area_m2[idx]
@@ -117,7 +117,7 @@ class SensorModel:
         return self.add_noise(self.clean_counts(obj, position_m, rotation), rng)
 
 
-def _sdf(obj: Any, points_m: np.ndarray) -> np.ndarray:
+def world_sdf(obj: Any, points_m: np.ndarray) -> np.ndarray:
     """Object SDF at (N, 3) world points (2D objects see x, y)."""
     if getattr(obj, "dim", 3) == 2:
         points_m = points_m[:, :2]
