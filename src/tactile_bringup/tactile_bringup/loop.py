@@ -3,11 +3,12 @@
 estimate → candidates → plan → move along the path → guarded approach along
 −normal until the finger's surface meets the object (contact) or a maximum
 depth (free space) → retract → update; a path that meets the object stops on
-that contact and backs off (the arm commander's behaviour). It uses the same cores with the same
-parameters as the nodes (``ShapeEstimator`` = gpis_estimator,
-``TouchPlanner`` = soc_planner, ``simulate_approach`` with the driver's
-``ContactDetector`` = sim_rig + tactile_sensor + arm_commander), so a seed and
-a config give the same touch sequence offline and on the graph.
+that contact and backs off (the arm commander's behaviour). It uses the same
+cores with the same parameters as the nodes (``ShapeEstimator`` =
+gpis_estimator, ``TouchPlanner`` = soc_planner, ``simulate_approach`` with the
+driver's ``ContactDetector`` = sim_rig + tactile_sensor + arm_commander). A
+seed and a config give the same touch sequence on every offline run; how far
+a graph run follows it: docs/exploration.md, "Determinism".
 
 World frame, metres, seconds. Travel and time follow
 :class:`tactile_bringup.motion.MotionModel`.
