@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from sensor_shapes import Cylinder, Plane, Sphere, rotation_about
 
-from tactile_driver.contact import ContactConfig, ContactDetector
+from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.taxels import hemisphere_layout, ring_layout
 from tactile_sim.sensor_model import SensorModel
 from tactile_sim.touch import simulate_approach
@@ -157,3 +157,10 @@ def test_hemisphere_side_contacts_keep_the_normal_only_below_the_rim():
         assert abs(ball.sdf(res.point_xyz[None])[0]) < 0.0015
         true_n = ball.gradient(res.point_xyz[None])[0]
         assert np.degrees(np.arccos(true_n @ d * -1.0)) > 10.0  # the finger's normal would be this far off
+
+
+def test_back_off_target_leaves_along_tip_minus_contact():
+    contact, tip = np.array([0.5, 0.0, 0.06]), np.array([0.5, 0.003, 0.064])  # 5 mm, a 3-4-5 direction
+    np.testing.assert_allclose(back_off_target(contact, tip, 0.02), [0.5, 0.012, 0.076])
+    assert back_off_target(contact, contact, 0.02) is None  # no direction
+    assert back_off_target(np.full(3, np.nan), tip, 0.02) is None

@@ -15,7 +15,7 @@ from typing import Any, Mapping, Optional
 import numpy as np
 
 from tactile_common.params_file import package_config
-from tactile_driver.contact import ContactConfig, ContactDetector
+from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.taxels import TaxelLayout, load_layout
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
@@ -106,9 +106,8 @@ class SimulatedFinger:
         rng = np.random.default_rng([self.seed, touch_index, 1])
         result = simulate_approach(self.obj, self.model.layout, self.model, self.detector, pts[j], pts[k] - pts[j],
                                    float(s[k] - s[j]) + 0.005, self.path_step_m, rng=rng)
-        if not result.contact:
+        back = back_off_target(result.point_xyz, result.tip_xyz_at_stop, self.back_off_m) if result.contact else None
+        if back is None:
             return None
-        away = result.tip_xyz_at_stop - result.point_xyz
-        back = result.point_xyz + self.back_off_m * away / np.linalg.norm(away)
         self.detector.update(self.model.frame(self.obj, back, np.eye(3), rng))  # off the surface: release
         return float(s[j]), result, back

@@ -40,6 +40,7 @@ from trajectory_msgs.msg import JointTrajectory
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_driver import arm_msgs
+from tactile_driver.contact import back_off_target
 from tactile_driver.ik import IKSettings
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, home_configuration
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog, WorkspaceBox
@@ -172,20 +173,13 @@ class ArmCommander:
         return self._start("retract", self.approach_origin_xyz[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
 
     def back_off(self, contact_xyz: np.ndarray, clearance_m: float) -> bool:
-        """Straight away from a contact the tip is on, at approach speed (world frame).
-
-        Target: c + (tip_radius_m + clearance_m)·u with c the contact point and
-        u = (tip − c)/|tip − c| (for a round fingertip, the object's outward
-        normal there, whatever the driver made of it): the tip ends
-        ``clearance_m`` off the surface. Contacts are ignored while backing off.
+        """Straight away from a contact the tip is on, at approach speed (world frame), to
+        :func:`~tactile_driver.contact.back_off_target` at ``tip_radius_m + clearance_m``:
+        the tip ends ``clearance_m`` off the surface. Contacts are ignored while backing off.
         """
-        c = np.asarray(contact_xyz, dtype=float).reshape(3)
-        tip = self._plan_start()[1]
-        away = tip - c
-        n = np.linalg.norm(away)
-        if not (np.all(np.isfinite(c)) and n > 1e-6 and clearance_m >= 0):
+        target = back_off_target(contact_xyz, self._plan_start()[1], self.cfg.tip_radius_m + clearance_m)
+        if target is None or not clearance_m >= 0:
             return self._reject("back_off", "needs a finite contact point away from the tip centre and clearance >= 0")
-        target = c + (self.cfg.tip_radius_m + clearance_m) * away / n
         return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
 
     def stop(self) -> None:
@@ -363,9 +357,9 @@ class ArmCommander:
         elapsed = self.now_s() - task.start_s
         if elapsed < task.traj.duration_s:
             return
-        err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
         if task.kind == "approach" and elapsed < task.traj.duration_s + self.cfg.contact_latency_s:
             return  # a contact sensed near the end may still be on its way from the driver
+        err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
         if err <= self.cfg.goal_tolerance_rad:
             self._finish(TaskResult.SUCCEEDED, f"{task.traj.length_m:.3f} m in {elapsed:.2f} s")
         elif elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:

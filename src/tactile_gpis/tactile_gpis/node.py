@@ -26,6 +26,7 @@ from tactile_common.fields import CONTACT_DTYPE, normals, xyz
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2, to_pointcloud2
+from tactile_common.stamps import stamp_ns
 
 from .estimator import PARAMETERS, ShapeEstimator
 from .ros_convert import occupancy_grid, surface_marker
@@ -55,7 +56,7 @@ class GpisEstimatorNode(Node):
 
     def on_contacts(self, msg: PointCloud2) -> None:
         self.n_received += 1
-        if (msg.header.stamp.sec, msg.header.stamp.nanosec) > (self.stamp.sec, self.stamp.nanosec):
+        if stamp_ns(msg.header.stamp) > stamp_ns(self.stamp):
             self.stamp = msg.header.stamp
         for ok, reason in self.add_cloud(msg):
             if not ok:
