@@ -102,7 +102,8 @@ class ExplorationLoop:
             observe(self.estimator, point, result.normal_xyz, result.contact)
             update_ms = (time.perf_counter() - t1) * 1e3
             record = touch_record(len(touches), plan.target_xyz, result.contact, point, result.normal_xyz,
-                                  travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator)
+                                  travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
+                                  path_xyz=path, path_followed_m=None if hit is None else free_m)
             touches.append(record)
             if progress is not None:
                 progress(record)

@@ -31,9 +31,29 @@ def observe(estimator, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], 
                               LABEL_CONTACT if contact else LABEL_FREE_SPACE)
 
 
+def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
+    """The free-space path the finger followed, (K, 3) rounded to 0.1 mm: all of it, or
+    its first ``followed_m`` metres (a path that met the object stopped there)."""
+    if path_xyz is None:
+        return None
+    P = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+    if followed_m is not None and len(P) > 1:
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+        k = int(np.searchsorted(cum, followed_m, side="right"))
+        if k < len(P):  # cut inside segment k-1 → k
+            t = (followed_m - cum[k - 1]) / max(cum[k] - cum[k - 1], 1e-12)
+            P = np.vstack([P[:k], P[k - 1] + t * (P[k] - P[k - 1])])
+    return np.round(P, 4).tolist()
+
+
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
-                 time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator]) -> dict:
-    """The report entry of one touch, with metrics of the estimate after it."""
+                 time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
+                 path_xyz=None, path_followed_m: Optional[float] = None) -> dict:
+    """The report entry of one touch, with metrics of the estimate after it.
+
+    ``path_xyz`` (K, 3): the free-space path from the tip to the pre-touch point
+    (world frame), recorded as ``path`` (see :func:`_path_record`) for the figures.
+    """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
     return {
@@ -49,6 +69,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "surface_error_m": evaluator.surface_error_m(estimator) if evaluator else None,
         "decision_ms": float(decision_ms),
         "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,
+        "path": _path_record(path_xyz, path_followed_m),
     }
 
 
