@@ -5,9 +5,11 @@ import pytest
 import serial
 from sensor_shapes import Plane, rotation_about
 
+from tactile_common.rotations import matrix_to_quaternion as matrix_to_quat
+from tactile_common.rotations import quaternion_to_matrix as quat_to_matrix
 from tactile_driver.device_clock import DeviceClock
 from tactile_driver.driver import DriverConfig, SensorDriver
-from tactile_driver.pose_buffer import PoseBuffer, matrix_to_quat, quat_to_matrix
+from tactile_driver.pose_buffer import PoseBuffer
 from tactile_driver.protocol import encode_frame
 from tactile_driver.serial_link import SerialLink
 from tactile_driver.taxels import ring_layout

@@ -13,26 +13,7 @@ from typing import Optional
 
 import numpy as np
 
-
-def quat_to_matrix(q_xyzw: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a quaternion (x, y, z, w); normalised first."""
-    x, y, z, w = np.asarray(q_xyzw, dtype=float) / np.linalg.norm(q_xyzw)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def matrix_to_quat(R: np.ndarray) -> np.ndarray:
-    """Quaternion (x, y, z, w), w >= 0, of a rotation matrix."""
-    R = np.asarray(R, dtype=float)
-    w = np.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2
-    x = np.copysign(np.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2, R[2, 1] - R[1, 2])
-    y = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2, R[0, 2] - R[2, 0])
-    z = np.copysign(np.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2, R[1, 0] - R[0, 1])
-    q = np.array([x, y, z, w])
-    return q / np.linalg.norm(q)
+from tactile_common.rotations import quaternion_to_matrix
 
 
 def slerp(q0: np.ndarray, q1: np.ndarray, u: float) -> np.ndarray:
@@ -96,10 +77,10 @@ class PoseBuffer:
         times = np.fromiter(self._t, float, len(self._t))
         i = int(np.searchsorted(times, t_s))
         if i == 0:
-            return self._p[0].copy(), quat_to_matrix(self._q[0])
+            return self._p[0].copy(), quaternion_to_matrix(self._q[0])
         if i >= len(times):
-            return self._p[-1].copy(), quat_to_matrix(self._q[-1])
+            return self._p[-1].copy(), quaternion_to_matrix(self._q[-1])
         t0, t1 = times[i - 1], times[i]
         u = 0.0 if t1 <= t0 else (t_s - t0) / (t1 - t0)
         p = (1 - u) * self._p[i - 1] + u * self._p[i]
-        return p, quat_to_matrix(slerp(self._q[i - 1], self._q[i], u))
+        return p, quaternion_to_matrix(slerp(self._q[i - 1], self._q[i], u))

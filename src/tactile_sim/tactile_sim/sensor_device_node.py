@@ -17,8 +17,8 @@ from rclpy.node import Node
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
+from tactile_common.rotations import quaternion_to_matrix, xyzw
 from tactile_common.stamps import stamp_s
-from tactile_driver.pose_buffer import quat_to_matrix
 from tactile_driver.sensor_node import resolve_config_file
 from tactile_driver.taxels import load_layout
 from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
@@ -64,7 +64,7 @@ class SimSensorDeviceNode(Node):
         pp, q = msg.pose.position, msg.pose.orientation
         t_s = stamp_s(msg.header.stamp)
         try:
-            self.device.set_pose([pp.x, pp.y, pp.z], quat_to_matrix([q.x, q.y, q.z, q.w]))
+            self.device.set_pose([pp.x, pp.y, pp.z], quaternion_to_matrix(xyzw(q)))
         except ValueError as exc:
             self.get_logger().warn(f"ignored fingertip pose: {exc}", throttle_duration_sec=5.0)
             return
