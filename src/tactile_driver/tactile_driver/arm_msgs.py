@@ -11,48 +11,16 @@ from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix, xyzw
 from tactile_common.stamps import stamp_ns, stamp_s  # noqa: F401  (stamp_ns: used by the commander)
 from tactile_driver.trajectory import TimedTrajectory
-
-
-def quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion (x, y, z, w) of a rotation matrix (Shepperd's method)."""
-    R = np.asarray(R, dtype=float)
-    tr = np.trace(R)
-    if tr > 0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, 0.25 * s]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(max(1.0 + R[i, i] - R[j, j] - R[k, k], 1e-300))
-        q = [0.0, 0.0, 0.0, (R[k, j] - R[j, k]) / s]
-        q[i] = 0.25 * s
-        q[j] = (R[j, i] + R[i, j]) / s
-        q[k] = (R[k, i] + R[i, k]) / s
-    q = np.asarray(q)
-    return q / np.linalg.norm(q)
-
-
-def matrix_from_quat(q_xyzw: Sequence[float]) -> np.ndarray:
-    """Rotation matrix of a quaternion (x, y, z, w); raises ValueError for a zero/non-finite one."""
-    x, y, z, w = (float(v) for v in q_xyzw)
-    n = np.sqrt(x * x + y * y + z * z + w * w)
-    if not np.isfinite(n) or n < 1e-9:
-        raise ValueError("orientation quaternion is zero or not finite")
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def pose_arrays(pose: Pose) -> tuple[np.ndarray, np.ndarray]:
     """Position (3,) and rotation (3, 3) of a Pose."""
     p = pose.position
     o = pose.orientation
-    return np.array([p.x, p.y, p.z], dtype=float), matrix_from_quat([o.x, o.y, o.z, o.w])
+    return np.array([p.x, p.y, p.z], dtype=float), quaternion_to_matrix(xyzw(o))
 
 
 def pose_stamped(position: np.ndarray, rotation: np.ndarray, frame_id: str, stamp: Time) -> PoseStamped:
@@ -60,7 +28,7 @@ def pose_stamped(position: np.ndarray, rotation: np.ndarray, frame_id: str, stam
     msg.header.frame_id = frame_id
     msg.header.stamp = stamp
     msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
-    qx, qy, qz, qw = quat_from_matrix(rotation)
+    qx, qy, qz, qw = matrix_to_quaternion(rotation)
     msg.pose.orientation.x, msg.pose.orientation.y = float(qx), float(qy)
     msg.pose.orientation.z, msg.pose.orientation.w = float(qz), float(qw)
     return msg
