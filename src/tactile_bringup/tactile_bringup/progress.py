@@ -14,6 +14,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from tactile_common.fields import LABEL_CONTACT, LABEL_FREE_SPACE
+from tactile_common.rotations import quaternion_x_axis, xyzw
 
 from . import plots
 from .evaluation import Evaluator
@@ -136,10 +137,8 @@ class RunRecorder:
         normal = np.array([observation["normal_x"], observation["normal_y"], observation["normal_z"]])
         target = np.full(3, np.nan)
         if goal is not None:  # target = pre-touch point + standoff along the approach (x-axis)
-            from .poses import pose_x_axis
-
             p = goal.pose.position
-            target = np.array([p.x, p.y, p.z]) + self.standoff_m * pose_x_axis(goal.pose.orientation)
+            target = np.array([p.x, p.y, p.z]) + self.standoff_m * quaternion_x_axis(xyzw(goal.pose.orientation))
         observe(self.estimator, point, normal, contact)
         record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
                               decision_ms, self.estimator, self.evaluator)
