@@ -14,7 +14,6 @@ import os
 import time
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
@@ -26,7 +25,7 @@ from tactile_common import fields, qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import to_pointcloud2
-from tactile_common.stamps import stamp_s
+from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
 from tactile_driver.serial_link import SerialLink
@@ -71,11 +70,6 @@ def resolve_config_file(name: str) -> str:
         return os.path.join(get_package_share_directory("tactile_driver"), "config", name)
     except (PackageNotFoundError, ValueError, LookupError) as exc:
         raise ValueError(f"cannot find config file '{name}': {exc}") from None
-
-
-def _stamp(t_s: float) -> Time:
-    ns = int(round(t_s * 1e9))
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class TactileSensorNode(Node):
@@ -144,7 +138,7 @@ class TactileSensorNode(Node):
         point["x"], point["y"], point["z"] = c.point_xyz
         point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
         point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
-        self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, _stamp(c.stamp_s)))
+        self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, time_from_s(c.stamp_s)))
         self.get_logger().info(
             f"contact at {np.round(c.point_xyz, 4).tolist()} normal {np.round(c.normal_xyz, 3).tolist()} "
             f"force {c.force_n:.3f} N")

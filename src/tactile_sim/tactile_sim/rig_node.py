@@ -20,7 +20,7 @@ from trajectory_msgs.msg import JointTrajectory
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
-from tactile_common.stamps import stamp_s
+from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
 from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
@@ -113,7 +113,7 @@ class SimRig(Node):
         if not self.context.ok():  # SIGINT arrived during this spin: publishing would raise
             return
         self.t_s += self.dt_s
-        stamp = self._stamp(self.t_s)
+        stamp = time_from_s(self.t_s)
         self._pub_clock.publish(ClockMsg(clock=stamp))
         q, qd = self.controller.state(self.t_s)
         js = JointState(name=list(self.model.joint_names), position=q.tolist(), velocity=qd.tolist())
@@ -122,13 +122,6 @@ class SimRig(Node):
         if self.device is not None:
             self.device.set_pose(*self.model.fk(q))
             self.device.step(self.t_s)
-
-    @staticmethod
-    def _stamp(t_s: float):
-        from builtin_interfaces.msg import Time
-
-        ns = int(round(t_s * 1e9))
-        return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
     def close(self) -> None:
         if self.device is not None:
