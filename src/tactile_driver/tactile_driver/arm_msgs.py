@@ -5,14 +5,14 @@ from __future__ import annotations
 from typing import Optional, Sequence
 
 import numpy as np
-from builtin_interfaces.msg import Duration, Time
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Pose, PoseStamped
 from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix, xyzw
-from tactile_common.stamps import stamp_ns, stamp_s  # noqa: F401  (stamp_ns: used by the commander)
+from tactile_common.stamps import duration_from_s, stamp_ns  # noqa: F401  (stamp_ns: used by the commander)
 from tactile_driver.trajectory import TimedTrajectory
 
 
@@ -52,15 +52,6 @@ def joint_positions(msg: JointState, names: Sequence[str]) -> Optional[np.ndarra
     return q if np.all(np.isfinite(q)) else None
 
 
-def to_duration(t_s: float) -> Duration:
-    sec = int(np.floor(t_s))
-    return Duration(sec=sec, nanosec=int(round((t_s - sec) * 1e9)) % 1_000_000_000)
-
-
-def duration_s(d: Duration) -> float:
-    return stamp_s(d)
-
-
 def trajectory_msg(traj: Optional[TimedTrajectory], joint_names: Sequence[str], frame_id: str = "") -> JointTrajectory:
     """A JointTrajectory starting now (stamp 0); ``None`` gives the empty message (stop and hold)."""
     msg = JointTrajectory()
@@ -70,6 +61,6 @@ def trajectory_msg(traj: Optional[TimedTrajectory], joint_names: Sequence[str], 
         return msg
     for t, q, qd in zip(traj.times_s, traj.positions_rad, traj.velocities_rad_s):
         msg.points.append(JointTrajectoryPoint(
-            positions=[float(v) for v in q], velocities=[float(v) for v in qd], time_from_start=to_duration(float(t))
+            positions=[float(v) for v in q], velocities=[float(v) for v in qd], time_from_start=duration_from_s(float(t))
         ))
     return msg
