@@ -22,6 +22,7 @@ from tactile_bringup.bag_ros import adapted_qos, declare_checked, message_class,
 from tactile_bringup.player import PlaybackClock, Recording
 from tactile_common import qos, topics
 from tactile_common.node_main import run_node
+from tactile_common.stamps import time_from_ns
 
 _EARLY_S = 0.0005  # publish a message this close to its due time now
 _ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
@@ -150,8 +151,7 @@ class PlayerNode(Node):
     def _publish_clock(self) -> None:
         t_ns = self._rec.start_ns if self._pclock is None else self._pclock.recorded_ns(time.monotonic())
         t_ns = min(t_ns, self._rec.end_ns) if not self._p.loop else t_ns
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(int(t_ns), 1_000_000_000)
+        msg = Clock(clock=time_from_ns(t_ns))
         self._clock_pub.publish(msg)
 
     def _log_progress(self) -> None:
