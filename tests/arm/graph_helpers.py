@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 
+from tactile_common.stamps import time_from_ns
 from tactile_driver.arm_msgs import pose_stamped
 
 
@@ -17,7 +17,7 @@ def goal_and_path(pre_touch_xyz, approach_dir, path_xyz, stamp_ns: int):
     y = np.cross(helper, x)
     y /= np.linalg.norm(y)
     R = np.column_stack([x, y, np.cross(x, y)])
-    stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+    stamp = time_from_ns(stamp_ns)
     goal = pose_stamped(np.asarray(pre_touch_xyz, float), R, "world", stamp)
     path = Path()
     path.header = goal.header

@@ -5,7 +5,6 @@ from pathlib import Path as FsPath
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
@@ -13,7 +12,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory
 
-from tactile_common import fields, qos, topics
+from tactile_common import fields, qos, stamps, topics
 from tactile_common.pointcloud import from_pointcloud2, to_pointcloud2
 
 from graph_helpers import done_values, goal_and_path
@@ -59,7 +58,7 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     free = [from_pointcloud2(m) for m in contacts]
     assert len(free) == 1 and free[0]["label"][0] == fields.LABEL_FREE_SPACE
     np.testing.assert_allclose(fields.xyz(free[0])[0], pre + APPROACH_M * direction, atol=1e-3)
-    assert int(v["observation_stamp_ns"]) == contacts[0].header.stamp.sec * 10**9 + contacts[0].header.stamp.nanosec
+    assert int(v["observation_stamp_ns"]) == stamps.stamp_ns(contacts[0].header.stamp)
     path_len = np.linalg.norm(np.diff(path, axis=0), axis=1).sum()
     assert abs(float(v["travel_m"]) - (path_len + 2 * APPROACH_M)) < 0.01
     # Back at the pre-touch pose.
@@ -127,17 +126,17 @@ def test_a_contact_still_on_its_way_at_the_end_of_the_approach_is_not_taken_for_
     g.wait_for(lambda: len(trajs) >= 2, 40, "the approach trajectory")
 
     def sim_s():
-        return clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9
+        return stamps.stamp_s(clock[-1].clock)
 
-    end_s = sim_s() + trajs[1].points[-1].time_from_start.sec + trajs[1].points[-1].time_from_start.nanosec * 1e-9
+    end_s = sim_s() + stamps.stamp_s(trajs[1].points[-1].time_from_start)
     g.wait_for(lambda: sim_s() > end_s + 0.5, 20, "the end of the approach")
     assert not done  # no free-space verdict yet
     late = np.zeros(1, dtype=fields.CONTACT_DTYPE)
     late["x"], late["y"], late["z"], late["label"] = pre[0], pre[1] + APPROACH_M, pre[2], fields.LABEL_CONTACT
-    stamp_ns = int((end_s - 0.05) * 1e9)
-    contact_pub.publish(to_pointcloud2(late, topics.WORLD_FRAME, Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)))
+    late_ns = int((end_s - 0.05) * 1e9)
+    contact_pub.publish(to_pointcloud2(late, topics.WORLD_FRAME, stamps.time_from_ns(late_ns)))
     g.wait_for(lambda: done, 30, "touch_done")
     v = done_values(done[0])
     assert done[0].message == "contact", v
-    assert int(v["observation_stamp_ns"]) == stamp_ns
+    assert int(v["observation_stamp_ns"]) == late_ns
     assert all(from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT for m in contacts)  # no free-space point

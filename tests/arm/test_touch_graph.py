@@ -19,6 +19,7 @@ from nav_msgs.msg import Path
 from sensor_msgs.msg import PointCloud2
 
 from tactile_common import fields, qos, topics
+from tactile_common.stamps import stamp_ns
 from tactile_common.pointcloud import from_pointcloud2
 
 from graph_helpers import done_values, goal_and_path
@@ -62,7 +63,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     assert done[0].message == "contact", v
     hits = [m for m in contacts if from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT]
     assert len(hits) == 1 and len(contacts) == 1  # one point per touch, no free-space point
-    assert int(v["observation_stamp_ns"]) == hits[0].header.stamp.sec * 10**9 + hits[0].header.stamp.nanosec
+    assert int(v["observation_stamp_ns"]) == stamp_ns(hits[0].header.stamp)
     pt = from_pointcloud2(hits[0])
     p, normal = fields.xyz(pt)[0], fields.normals(pt)[0]
     radial = (p[:2] - CENTRE) / np.linalg.norm(p[:2] - CENTRE)
@@ -104,7 +105,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     v3 = done_values(done[2])
     assert done[2].message == "contact" and "unexpected contact" in v3["reason"], v3
     assert from_pointcloud2(contacts[2])["label"][0] == fields.LABEL_CONTACT
-    assert int(v3["observation_stamp_ns"]) == contacts[2].header.stamp.sec * 10**9 + contacts[2].header.stamp.nanosec
+    assert int(v3["observation_stamp_ns"]) == stamp_ns(contacts[2].header.stamp)
     # Backed off along tip − contact to standoff_m from the contact point. At path speed the onset
     # is detected a few mm deep, so only "clear of the surface, about standoff_m off" is asserted.
     def gap_m():  # tip surface to the circle, from the newest pose (poses may trail touch_done)

@@ -11,6 +11,7 @@ from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import String
 
 from tactile_common import qos
+from tactile_common.stamps import stamp_ns
 from tactile_common.testing import DomainLease, RosGraph
 
 from test_recorder_graph import LATCHED_TEXT, N_POSES, cloud_key, decode, record_short_graph
@@ -63,7 +64,7 @@ def test_replay_delivers_every_message_in_order(ros_graph, fresh_graph, tmp_path
     late = fresh_graph.wait_for_message("/latched_note", String, qos.LATCHED, timeout_s=15)
     assert late.data == LATCHED_TEXT
 
-    stamps = [c.clock.sec * 10**9 + c.clock.nanosec for c in clocks]
+    stamps = [stamp_ns(c.clock) for c in clocks]
     assert stamps and stamps == sorted(stamps)
     assert all(start_ns <= s <= end_ns for s in stamps)
     assert fresh_graph.stop_all() == {"player": 0}

@@ -20,6 +20,7 @@ from tactile_bringup.mcap_recorder import recover
 from tactile_common import qos, topics
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_common.smoke import seeded_cloud
+from tactile_common.stamps import time_from_ns
 
 pytestmark = pytest.mark.graph
 
@@ -174,8 +175,7 @@ def test_sim_time_log_times_and_exclude(ros_graph, tmp_path):
     tick_ns = 10**8
 
     def tick():  # /clock at 50 Hz advancing 0.1 s per tick; notes once the recorder listens
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(t0_ns + sim["ticks"] * tick_ns, 10**9)
+        msg = Clock(clock=time_from_ns(t0_ns + sim["ticks"] * tick_ns))
         clock_pub.publish(msg)
         sim["ticks"] += 1
         if note_pub.get_subscription_count() and sim["notes_from"] is None:
