@@ -20,8 +20,10 @@ OCCUPANCY = "/gpis/occupancy"
 SURFACE = "/gpis/surface"
 
 # Planning.
+REQUEST = "/planner/request"
 GOAL = "/planner/goal"
 PATH = "/planner/path"
+PLANNER_STATUS = "/planner/status"
 
 # Arm.
 JOINT_TRAJECTORY = "/joint_trajectory_controller/joint_trajectory"
@@ -32,3 +34,7 @@ TOUCH_DONE = "/arm/touch_done"
 
 # Simulation.
 CLOCK = "/clock"
+
+# ROS's own (recordings leave them out).
+ROSOUT = "/rosout"
+PARAMETER_EVENTS = "/parameter_events"
