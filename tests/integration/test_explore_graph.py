@@ -20,6 +20,7 @@ import pytest
 from tactile_bringup.experiment import Experiment
 from tactile_bringup.loop import ExplorationLoop
 from tactile_bringup.report import check_report
+from tactile_common import topics
 from tactile_common.testing import DomainLease
 from tactile_sim.objects import make_object
 
@@ -75,10 +76,10 @@ def test_graph_run_records_reports_and_replays_offline(domain_env, tmp_path):
         for conn, _, raw in reader.messages():
             reader.deserialize(raw, conn.msgtype)
             counts[conn.topic] = counts.get(conn.topic, 0) + 1
-    for topic in ("/tactile/contacts", "/planner/goal", "/planner/path", "/gpis/variance_map",
-                  "/arm/touch_done", "/joint_states", "/clock"):
+    for topic in (topics.CONTACTS, topics.GOAL, topics.PATH, topics.VARIANCE_MAP,
+                  topics.TOUCH_DONE, topics.JOINT_STATES, topics.CLOCK):
         assert counts.get(topic, 0) > 0, f"{topic} not recorded: {sorted(counts)}"
-    assert counts["/arm/touch_done"] == touches
+    assert counts[topics.TOUCH_DONE] == touches
 
     # Offline re-analysis: same final IoU, and the planner re-makes every decision
     # of the graph from the graph's own observations (same code, parameters, seed).

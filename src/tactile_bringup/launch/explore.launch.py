@@ -34,6 +34,7 @@ ARGS = {
 
 def _nodes(context):
     from tactile_bringup.experiment import Experiment
+    from tactile_common import topics
 
     a = {k: LaunchConfiguration(k).perform(context) for k in ARGS}
     out = Path(a["out"] or f"runs/{time.strftime('%Y%m%d-%H%M%S')}").resolve()
@@ -52,7 +53,7 @@ def _nodes(context):
                     parameters=files + [common, extra or {}])
 
     nodes = [node("recorder", "tactile_bringup",
-                  {"output": str(out / "run.mcap"), "exclude": ["/rosout", "/parameter_events"]})]
+                  {"output": str(out / "run.mcap"), "exclude": [topics.ROSOUT, topics.PARAMETER_EVENTS]})]
     if sim:
         nodes.append(node("sim_rig", "tactile_sim",
                           {"real_time_factor": float(a["real_time_factor"]), "sensor_link_path": port}))

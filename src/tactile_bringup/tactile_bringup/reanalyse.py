@@ -33,8 +33,6 @@ from .player import Recording
 from .loop import make_planner
 from .progress import RunRecorder, write_outputs
 
-PLANNER_STATUS = "/planner/status"
-
 
 def run_params_files(bag: Path) -> list[Path]:
     """The parameter files a run's nodes got, saved by explore.sh next to the recording."""
@@ -59,7 +57,7 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
     planner = make_planner(exp)
     tip = np.asarray(exp.start_tip_xyz, dtype=float)
     decisions: list[dict] = []
-    wanted = [t for t in (topics.CONTACTS, topics.GOAL, PLANNER_STATUS, topics.TOUCH_DONE) if t in recording.topics]
+    wanted = [t for t in (topics.CONTACTS, topics.GOAL, topics.PLANNER_STATUS, topics.TOUCH_DONE) if t in recording.topics]
     if topics.TOUCH_DONE not in wanted or topics.CONTACTS not in wanted:
         raise ValueError(f"{bag} has no {topics.TOUCH_DONE} or {topics.CONTACTS}: not an exploration run")
     types = {t: message_class(recording.topics[t].type_name) for t in wanted}
@@ -72,7 +70,7 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
                 observations[stamp_ns(msg.header.stamp)] = points[0]
         elif topic == topics.GOAL:
             goals[stamp_ns(msg.header.stamp)] = msg
-        elif topic == PLANNER_STATUS:
+        elif topic == topics.PLANNER_STATUS:
             values = {kv.key: kv.value for kv in msg.values}
             if "decision_ms" in values:
                 decision_ms[int(values.get("stamp_ns", 0) or 0)] = float(values["decision_ms"])
