@@ -17,6 +17,7 @@ from tactile_common.fields import LABEL_CONTACT, LABEL_FREE_SPACE
 from tactile_common.rotations import quaternion_x_axis, xyzw
 
 from . import plots
+from .cores import make_estimator
 from .evaluation import Evaluator
 from .report import check_report, make_report, write_report
 
@@ -111,8 +112,6 @@ class RunRecorder:
     """The explorer node's bookkeeping: a replica estimate, touch records, outputs."""
 
     def __init__(self, experiment, out_dir: Path, evaluate: bool = True) -> None:
-        from .loop import make_estimator
-
         self.exp = experiment
         self.out_dir = Path(out_dir)
         self.estimator = make_estimator(experiment)

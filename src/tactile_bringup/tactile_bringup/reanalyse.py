@@ -28,9 +28,9 @@ from tactile_common.stamps import stamp_ns
 
 from .bag_ros import message_class
 from .cli_common import run_main
+from .cores import make_planner
 from .experiment import Experiment
 from .player import Recording
-from .loop import make_planner
 from .progress import RunRecorder, write_outputs
 
 
