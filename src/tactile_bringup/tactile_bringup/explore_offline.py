@@ -42,7 +42,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if args.shape:
             loop.estimator.export_shape(args.shape)
         if args.plot:
-            plots.plot_progress(report, args.plot, loop.estimator.surface_points(), loop.true_surface)
+            plots.plot_progress(report, args.plot, loop.estimator.surface_points(), loop.true_surface,
+                                estimator=loop.estimator, obj=loop.evaluator.obj)
         s = report["summary"]
         t90, t95 = s["travel_to_iou_0.90_m"], s["travel_to_iou_0.95_m"]
         print(f"final IoU {s['final_iou']:.3f} after {s['touches']} touches, travel {s['travel_m']:.2f} m, "

@@ -10,78 +10,80 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 
-
-def _curve(report: dict, key: str) -> tuple[np.ndarray, np.ndarray]:
-    """Step curve of IoU against cumulative ``key`` (travel_m or time_s), from zero."""
-    xs = [0.0] + [t[key] for t in report["touches"]]
-    ys = [report["summary"].get("prior_iou", 0.0)] + [t["iou"] for t in report["touches"]]
-    return np.asarray(xs, dtype=float), np.asarray(ys, dtype=float)
+from .figure_data import LEVELS, band, group_key  # noqa: E402
 
 
 def plot_progress(report: dict, path: Path, estimate_xy: Optional[np.ndarray] = None,
-                  truth_xy: Optional[np.ndarray] = None) -> Path:
-    """IoU against travel and time; the touch sequence over the estimated and true shapes."""
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    for ax, key, label in ((axes[0], "travel_m", "travel (m)"), (axes[1], "time_s", "robot time (s)")):
-        x, y = _curve(report, key)
-        ax.step(x, y, where="post", marker="o", ms=3)
-        for level in (0.90, 0.95):
-            ax.axhline(level, color="grey", lw=0.6, ls="--")
-        ax.set_xlabel(label)
-        ax.set_ylabel("IoU")
-        ax.set_ylim(0, 1.02)
-        ax.grid(alpha=0.3)
-    ax = axes[2]
-    if truth_xy is not None and len(truth_xy):
-        ax.plot(truth_xy[:, 0], truth_xy[:, 1], ".", ms=1, color="0.6", label="true surface")
-    if estimate_xy is not None and len(estimate_xy):
-        ax.plot(estimate_xy[:, 0], estimate_xy[:, 1], ".", ms=1.5, color="tab:blue", label="estimate")
-    touches = report["touches"]
-    if touches:  # numbered in touch order (no lines: the finger's paths go around the object)
-        for t in touches:
-            p = t["contact"] if t["contact"] is not None else t["target"]
-            ax.plot(p[0], p[1], "o" if t["contact"] is not None else "x",
-                    color="tab:red" if t["contact"] is not None else "k", ms=4)
-            ax.annotate(str(t["index"]), p[:2], fontsize=6, xytext=(3, 3), textcoords="offset points")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title("touches in order (o contact, x free space)" + (" — top view" if report["mode"] == "3d" else ""))
-    ax.legend(loc="upper right", fontsize=7)
-    s = report["summary"]
-    fig.suptitle(f"{report['object']} ({report['mode']}), {report['strategy']}, seed {report['seed']}: "
-                 f"final IoU {s['final_iou']:.3f}, travel {s['travel_m']:.2f} m, time {s['time_s']:.0f} s")
-    fig.tight_layout()
+                  truth_xy: Optional[np.ndarray] = None, *, estimator=None, obj=None) -> Path:
+    """The run's progress figure (PNG): what the run saw and did, and its IoU curves.
+
+    2D (:mod:`tactile_bringup.figures2d`): the posterior σ field, estimate over truth,
+    their disagreement, every path, approach, contact (with normal) and probe in order;
+    3D (:mod:`tactile_bringup.figures3d`): three views of the estimated surface coloured
+    by σ over the true one. Beside them IoU (and ``iou_reachable`` when the touches carry
+    it) against travel and robot time, with where 0.90/0.95 were reached.
+
+    Args:
+        estimator: the run's ``ShapeEstimator`` (σ field, estimated contour/surface);
+            without it the estimate is drawn from the points ``estimate_xy``.
+        obj: the true object (``tactile_sim`` SDF object); without it the truth is
+            drawn from the points ``truth_xy`` (or not at all).
+    """
+    if report.get("mode") not in ("2d", "3d"):
+        raise ValueError(f"report mode must be '2d' or '3d', got {report.get('mode')!r}")
     path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    if report["mode"] == "2d":
+        from .figures2d import plot_progress_2d
+
+        plot_progress_2d(report, path, estimator, obj, estimate_xy, truth_xy)
+    else:
+        from .figures3d import plot_progress_3d
+
+        plot_progress_3d(report, path, estimator, obj, estimate_xy, truth_xy)
     return path
 
 
-def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m") -> Path:
-    """IoU against travel per object, strategies overlaid (median over seeds, thin lines per seed)."""
-    objects = sorted({r["object"] for r in runs})
+def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m", y_key: str = "iou") -> Path:
+    """IoU against travel (or time) per strategy: the median over runs and the inter-quartile band.
+
+    One panel per family when the runs carry a ``family`` field, else per object,
+    and a first panel over every run when there are several. A run keeps its final
+    IoU after it ended (as the benchmark's budget table counts it).
+    """
+    if not runs:
+        raise ValueError("plot_strategies needs at least one run")
+    groups = sorted({group_key(r) for r in runs})
+    panels = ([("all runs", list(runs))] if len(groups) > 1 else []) + \
+        [(g, [r for r in runs if group_key(r) == g]) for g in groups]
     strategies = sorted({r["strategy"] for r in runs})
-    cols = min(4, len(objects))
-    rows = int(np.ceil(len(objects) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.3 * rows), squeeze=False)
-    colors = {s: f"C{i}" for i, s in enumerate(strategies)}
-    for ax, obj in zip(axes.ravel(), objects):
+    colours = {s: f"C{i}" for i, s in enumerate(strategies)}
+    cols = min(4, len(panels))
+    rows = int(np.ceil(len(panels) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.4 * rows), squeeze=False)
+    for ax, (name, sel) in zip(axes.ravel(), panels):
+        x_max = max(float(r["touches"][-1][key]) if r["touches"] else 0.0 for r in sel)
         for strat in strategies:
-            sel = [r for r in runs if r["object"] == obj and r["strategy"] == strat]
-            for i, r in enumerate(sel):
-                x, y = _curve(r, key)
-                ax.step(x, y, where="post", color=colors[strat], lw=0.8, alpha=0.6,
-                        label=strat if i == 0 else None)
-        ax.set_title(obj, fontsize=9)
+            mine = [r for r in sel if r["strategy"] == strat]
+            if not mine:
+                continue
+            b = band(mine, key, y_key, x_max=x_max)
+            ax.fill_between(b.grid, b.q25, b.q75, color=colours[strat], alpha=0.18, lw=0, step="post")
+            ax.step(b.grid, b.median, where="post", color=colours[strat], lw=1.6,
+                    label=f"{strat} ({b.runs})")
+        for level in LEVELS:
+            ax.axhline(level, color="grey", lw=0.6, ls="--")
+        ax.set_title(name, fontsize=9, fontweight="bold" if name == "all runs" else "normal")
         ax.set_ylim(0, 1.02)
-        ax.axhline(0.95, color="grey", lw=0.6, ls="--")
+        ax.set_xlim(0, x_max)
         ax.grid(alpha=0.3)
-        ax.set_xlabel("travel (m)" if key == "travel_m" else "time (s)", fontsize=8)
-    for ax in axes.ravel()[len(objects):]:
+        ax.set_xlabel("fingertip travel (m)" if key == "travel_m" else "robot time (s)", fontsize=8)
+        ax.set_ylabel("IoU" if y_key == "iou" else "IoU (finger-reachable)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
-    axes[0, 0].legend(fontsize=7)
+    axes[0, 0].legend(fontsize=7, loc="lower right", title="median, 25–75 % (runs)", title_fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -89,21 +91,28 @@ def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m") -> 
 
 
 def plot_gallery(shapes: Sequence[tuple[str, np.ndarray, np.ndarray]], path: Path) -> Path:
-    """Final estimated shapes (blue) over the true ones (grey): (title, estimate_xy, truth_xy)."""
+    """Final estimated shapes (orange) over the true ones (black), top view in 3D:
+    (title, estimate_xy, truth_xy) per panel."""
+    if not shapes:
+        raise ValueError("plot_gallery needs at least one shape")
     cols = min(5, len(shapes))
     rows = int(np.ceil(len(shapes) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(3 * cols, 3 * rows), squeeze=False)
     for ax, (title, est, truth) in zip(axes.ravel(), shapes):
+        est, truth = np.asarray(est, dtype=float), np.asarray(truth, dtype=float)
         if len(truth):
-            ax.plot(truth[:, 0], truth[:, 1], ".", ms=0.8, color="0.6")
+            ax.plot(truth[:, 0], truth[:, 1], ".", ms=1.2, color="k")
         if len(est):
-            ax.plot(est[:, 0], est[:, 1], ".", ms=0.8, color="tab:blue")
+            ax.plot(est[:, 0], est[:, 1], ".", ms=0.9, color="tab:orange")
         ax.set_aspect("equal")
         ax.set_title(title, fontsize=8)
         ax.set_xticks([])
         ax.set_yticks([])
     for ax in axes.ravel()[len(shapes):]:
         ax.axis("off")
+    fig.legend(handles=[Line2D([], [], marker="o", ls="", color="k", label="true"),
+                        Line2D([], [], marker="o", ls="", color="tab:orange", label="estimate")],
+               loc="lower right", fontsize=8, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -103,7 +103,8 @@ def write_outputs(report: dict, estimator, evaluator: Optional[Evaluator], out_d
         estimator.export_shape(shape)
         written.append(str(shape))
     plots.plot_progress(report, out_dir / "progress.png", surface,
-                        evaluator.true_surface if evaluator else None)
+                        evaluator.true_surface if evaluator else None, estimator=estimator,
+                        obj=evaluator.obj if evaluator else None)
     written.append(str(out_dir / "progress.png"))
     return written
 
