@@ -10,7 +10,6 @@ stamp = frame time) using the fingertip pose interpolated from
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
@@ -29,7 +28,7 @@ from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
 from tactile_driver.serial_link import SerialLink
-from tactile_driver.taxels import load_layout
+from tactile_driver.taxels import load_layout, resolve_layout_file
 
 PARAMS = {
     "port": ("/tmp/tactile_sim/sensor", "serial device path of the sensor (a pty symlink in simulation)"),
@@ -60,23 +59,11 @@ PARAMS = {
 }
 
 
-def resolve_config_file(name: str) -> str:
-    """A path as given, or a file name looked up in tactile_driver's share/config."""
-    if os.path.isabs(name) or os.path.exists(name):
-        return name
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
-    try:
-        return os.path.join(get_package_share_directory("tactile_driver"), "config", name)
-    except (PackageNotFoundError, ValueError, LookupError) as exc:
-        raise ValueError(f"cannot find config file '{name}': {exc}") from None
-
-
 class TactileSensorNode(Node):
     def __init__(self) -> None:
         super().__init__("tactile_sensor")
         p = declare_parameters(self, PARAMS)
-        layout = load_layout(resolve_config_file(p.layout_file))
+        layout = load_layout(resolve_layout_file(p.layout_file))
         contact = ContactConfig(
             counts_per_newton=p.contact_counts_per_newton, on_threshold_n=p.contact_on_threshold_n,
             off_threshold_n=p.contact_off_threshold_n, noise_gate_sigma=p.contact_noise_gate_sigma,

@@ -264,6 +264,27 @@ def save_layout(layout: TaxelLayout, path: str | Path) -> None:
     Path(path).write_text(header + yaml.safe_dump(layout_to_dict(layout), sort_keys=False, default_flow_style=None))
 
 
+#: The layout file of each mode's fingertip, unless a ``layout_file`` parameter names another.
+DEFAULT_LAYOUT_FILES = {"2d": "taxels_ring.yaml", "3d": "taxels_hemisphere.yaml"}
+
+
+def resolve_layout_file(name: str, mode: str | None = None) -> Path:
+    """The layout file to load: ``name`` itself when it is absolute or exists, else a file
+    in tactile_driver's config (``share/tactile_driver/config``, or the source tree);
+    an empty ``name`` means the default of ``mode`` (``DEFAULT_LAYOUT_FILES``)."""
+    if not name:
+        if mode not in DEFAULT_LAYOUT_FILES:
+            raise ValueError(f"layout file: give a file name, or mode one of {sorted(DEFAULT_LAYOUT_FILES)} "
+                             f"for its default; got mode {mode!r}")
+        name = DEFAULT_LAYOUT_FILES[mode]
+    path = Path(name)
+    if path.is_absolute() or path.exists():
+        return path
+    from tactile_common.params_file import package_config
+
+    return package_config("tactile_driver", name)
+
+
 def default_config_dir() -> Path:
     """``config/`` of this package in the source tree (editable install)."""
     return Path(__file__).resolve().parent.parent / "config"

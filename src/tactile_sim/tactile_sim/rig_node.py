@@ -74,8 +74,7 @@ class SimRig(Node):
         )
 
     def _make_device(self, p):
-        from tactile_driver.sensor_node import resolve_config_file
-        from tactile_driver.taxels import load_layout
+        from tactile_driver.taxels import load_layout, resolve_layout_file
         from tactile_sim.objects import make_object
         from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
         from tactile_sim.sensor_model import SensorModelConfig
@@ -83,8 +82,7 @@ class SimRig(Node):
         # The physical object is always a solid: in 2D mode the section becomes its prism
         # (the finger above the prism must not touch it).
         obj = make_object(p.object, "3d", tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
-        default = "taxels_ring.yaml" if p.mode == "2d" else "taxels_hemisphere.yaml"
-        layout = load_layout(resolve_config_file(p.sensor_layout or default))
+        layout = load_layout(resolve_layout_file(p.sensor_layout, p.mode))
         faults = FaultConfig(
             garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob, drop_prob=p.fault_drop_prob,
             stuck_taxel=p.fault_stuck_taxel, stuck_value=p.fault_stuck_value, stuck_after_s=p.fault_stuck_after_s,

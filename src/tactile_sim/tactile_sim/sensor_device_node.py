@@ -19,8 +19,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.rotations import quaternion_to_matrix, xyzw
 from tactile_common.stamps import stamp_s
-from tactile_driver.sensor_node import resolve_config_file
-from tactile_driver.taxels import load_layout
+from tactile_driver.taxels import load_layout, resolve_layout_file
 from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.objects import make_object
 from tactile_sim.sensor_device import FaultConfig, SimulatedSensorDevice
@@ -43,8 +42,7 @@ class SimSensorDeviceNode(Node):
         super().__init__("sim_sensor_device")
         p = declare_parameters(self, PARAMS)
         obj = make_object(p.object, p.mode, tuple(p.object_xy_m), p.object_yaw_rad, p.object_scale, p.prism_height_m)
-        default = "taxels_ring.yaml" if p.mode == "2d" else "taxels_hemisphere.yaml"
-        layout = load_layout(resolve_config_file(p.layout_file or default))
+        layout = load_layout(resolve_layout_file(p.layout_file, p.mode))
         faults = FaultConfig(
             garbage_prob=p.fault_garbage_prob, crc_error_prob=p.fault_crc_error_prob, drop_prob=p.fault_drop_prob,
             stuck_taxel=p.fault_stuck_taxel, stuck_value=p.fault_stuck_value, stuck_after_s=p.fault_stuck_after_s,
