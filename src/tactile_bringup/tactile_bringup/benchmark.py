@@ -14,6 +14,7 @@ import multiprocessing as mp
 import os
 import sys
 import time
+from functools import partial
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -21,6 +22,8 @@ import numpy as np
 
 from . import plots
 from .cli_common import add_experiment_args, run_main
+from .progress_bar import ProgressBar
+from .sweep import failure_line, guarded, is_failure
 from .experiment import Experiment
 from .loop import ExplorationLoop
 from .report import _clean
@@ -173,24 +176,39 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
         ctx = mp.get_context("spawn")
+        # A run that raises is reported (with the command that repeats it) and the sweep goes on.
+        bar, failures = ProgressBar(len(jobs)), []
         with ctx.Pool(args.jobs, maxtasksperchild=4) as pool:
-            for i, report in enumerate(pool.imap_unordered(_one_run, jobs), 1):
+            for report in pool.imap_unordered(partial(guarded, _one_run), jobs):
+                if is_failure(report):
+                    failures.append(report)
+                    bar.update(False, failure_line(report))
+                    continue
                 est, truth = report.pop("_shape")
-                if report["seed"] == 0:
-                    shapes.append((f"{report['object']} / {report['strategy']}", np.asarray(est),
-                                   np.asarray(truth)))
-                runs.append(report)
                 s = report["summary"]
-                print(f"[{i}/{len(jobs)}] {report['object']:>14s} {report['strategy']:>11s} seed {report['seed']}: "
-                      f"IoU {s['final_iou']:.3f}, travel to 0.95 "
-                      f"{'—' if s['travel_to_iou_0.95_m'] is None else format(s['travel_to_iou_0.95_m'], '.2f')} m, "
-                      f"{report['wall_s']:.0f} s  (elapsed {time.time() - t0:.0f} s)", file=sys.stderr)
+                if report["seed"] == 0:
+                    shapes.append((f"{report['object']} / {report['strategy']}\nIoU {s['final_iou']:.3f}",
+                                   np.asarray(est), np.asarray(truth)))
+                runs.append(report)
+                bar.update(True, f"{report['object']:>14s} {report['strategy']:>11s} seed {report['seed']}: "
+                           f"IoU {s['final_iou']:.3f}, travel to 0.95 "
+                           f"{'—' if s['travel_to_iou_0.95_m'] is None else format(s['travel_to_iou_0.95_m'], '.2f')} m, "
+                           f"{report['wall_s']:.0f} s")
+        bar.close()
+        if failures:
+            (args.out / "failures.json").write_text(json.dumps(_clean(failures), indent=1))
+            print(f"{len(failures)} of {len(jobs)} runs failed (details: {args.out}/failures.json):", file=sys.stderr)
+            for f in failures:
+                print(failure_line(f), file=sys.stderr)
+        if not runs:
+            print("no run finished: no summary", file=sys.stderr)
+            return 1
         runs.sort(key=lambda r: (r["object"], r["strategy"], r["seed"]))
         (args.out / "runs.json").write_text(json.dumps(_clean(runs)))
         print(write_summary(runs, args.out, args.mode, shapes))
         print(f"wrote {args.out}/runs.json, summary.md, iou_vs_travel.png, iou_vs_time.png, gallery.png",
               file=sys.stderr)
-        return 0
+        return 1 if failures else 0
 
     return run_main(body)
 
