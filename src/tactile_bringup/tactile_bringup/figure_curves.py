@@ -12,15 +12,19 @@ STYLES = {"iou": dict(color="tab:blue", lw=1.8, ls="-"),
 LEVEL_COLOURS = {0.90: "tab:orange", 0.95: "tab:red"}
 
 
-def draw_iou_panel(ax, report: dict, x_key: str) -> None:
+def draw_iou_panel(ax, report: dict, x_key: str) -> dict:
     """Step curves of every IoU the touches carry against ``x_key``, with the 0.90/0.95
-    lines and a marker where each curve first reached them."""
+    lines and a marker where each curve first reached them.
+
+    Returns:
+        {(curve key, level): (x, IoU)} of the crossings drawn.
+    """
     keys = iou_keys(report)
     for level in LEVELS:
         ax.axhline(level, color=LEVEL_COLOURS[level], lw=0.8, ls=":", zorder=1)
         ax.text(0.0, level, f" {level:.2f}", color=LEVEL_COLOURS[level], fontsize=7, va="bottom",
                 ha="left", transform=ax.get_yaxis_transform())
-    notes = []
+    notes, drawn = [], {}
     for key in keys:
         x, y = step_curve(report, x_key, key)
         ax.step(x, y, where="post", label=IOU_KEYS[key], zorder=3, **STYLES[key])
@@ -30,6 +34,7 @@ def draw_iou_panel(ax, report: dict, x_key: str) -> None:
             if hit is None:
                 continue
             ax.axvline(hit[0], color=LEVEL_COLOURS[level], lw=0.7, ls=(0, (2, 2)), ymax=hit[1] / 1.02)
+            drawn[(key, level)] = hit
             ax.plot(*hit, marker="D", ms=6, mfc="none", mec=LEVEL_COLOURS[level], mew=1.4, zorder=4)
             value = f"{hit[0]:.2f} m" if x_key == "travel_m" else f"{hit[0]:.0f} s"
             notes.append(f"{IOU_KEYS[key]} ≥ {level:.2f} at {value} (touch {int(np.argmax(y >= level)) - 1})")
@@ -46,6 +51,7 @@ def draw_iou_panel(ax, report: dict, x_key: str) -> None:
     ax.grid(alpha=0.3)
     if keys:
         ax.legend(loc="center right", fontsize=7)
+    return drawn
 
 
 def title(report: dict) -> str:

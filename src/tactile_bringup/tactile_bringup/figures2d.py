@@ -157,15 +157,17 @@ def _draw_touches(ax, report: dict, fig, handles: list) -> None:
 
 
 def plot_progress_2d(report: dict, path, estimator=None, obj=None, estimate_xy=None, truth_xy=None,
-                     dpi: int = 110) -> None:
-    """Write the 2D progress figure to ``path`` (PNG)."""
+                     dpi: int = 110) -> dict:
+    """Write the 2D progress figure to ``path`` (PNG); the IoU crossings drawn, per x key."""
     fig = plt.figure(figsize=(15, 8))
     gs = fig.add_gridspec(2, 4, width_ratios=[1.45, 0.035, 0.3, 1.0], hspace=0.3, wspace=0.05)
     ax_map = fig.add_subplot(gs[:, 0])
     draw_plane(ax_map, report, estimator, obj, estimate_xy, truth_xy, fig, cbar_ax=fig.add_subplot(gs[:, 1]))
     ax_map.set_title("posterior σ, estimate vs truth, touches in order", fontsize=10)
+    crossings = {}
     for row, key in enumerate(("travel_m", "time_s")):
-        draw_iou_panel(fig.add_subplot(gs[row, 3]), report, key)
+        crossings[key] = draw_iou_panel(fig.add_subplot(gs[row, 3]), report, key)
     fig.suptitle(title(report), fontsize=11)
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
+    return crossings

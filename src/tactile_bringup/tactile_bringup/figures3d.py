@@ -77,8 +77,8 @@ def _shade(rgba: np.ndarray, tri: np.ndarray) -> np.ndarray:
 
 
 def plot_progress_3d(report: dict, path, estimator=None, obj=None, estimate_xyz=None, truth_xyz=None,
-                     dpi: int = 100) -> None:
-    """Write the 3D progress figure to ``path`` (PNG)."""
+                     dpi: int = 100) -> dict:
+    """Write the 3D progress figure to ``path`` (PNG); the IoU crossings drawn, per x key."""
     fig = plt.figure(figsize=(18, 11.5))
     gs = fig.add_gridspec(2, 4, height_ratios=[1.5, 0.8], width_ratios=[1, 1, 1, 0.04], hspace=0.12,
                           wspace=0.08)
@@ -123,11 +123,13 @@ def plot_progress_3d(report: dict, path, estimator=None, obj=None, estimate_xyz=
     cb = fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), cax=cax)
     cb.set_label("estimated surface: log$_{10}$ σ of the posterior f (σ in m)")
     inner = gs[1, :3].subgridspec(1, 2, wspace=0.18)
+    crossings = {}
     for col, key in enumerate(("travel_m", "time_s")):
-        draw_iou_panel(fig.add_subplot(inner[0, col]), report, key)
+        crossings[key] = draw_iou_panel(fig.add_subplot(inner[0, col]), report, key)
     fig.suptitle(title(report), fontsize=12)
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
+    return crossings
 
 
 def _box(tri, rings, geo, estimate_xyz, truth_xyz, margin_m: float = 0.02) -> np.ndarray:
