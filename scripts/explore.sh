@@ -16,27 +16,30 @@ usage() { sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 
 mode=2d object="" strategy="" alpha="" touches="" seed=0 out="" rtf=4.0 rig=sim
 sensor_port="/dev/ttyUSB0" yes=0 user_params=()
+die() { echo "explore.sh: error: $* (see --help)" >&2; exit 2; }
+need() { [ $# -ge 2 ] || die "$1 needs a value"; }  # need "$@": the option has a value
+# Values are checked (type, range, contradictions) by launch_plan below, against
+# the nodes' parameter tables, before any node starts or anything is written.
 while [ $# -gt 0 ]; do
   case "$1" in
-    --object) object="$2"; shift 2 ;;
-    --mode) mode="$2"; shift 2 ;;
-    --strategy) strategy="$2"; shift 2 ;;
-    --alpha) alpha="$2"; shift 2 ;;
-    --touches) touches="$2"; shift 2 ;;
-    --seed) seed="$2"; shift 2 ;;
-    --out) out="$2"; shift 2 ;;
-    --real-time-factor) rtf="$2"; shift 2 ;;
-    --rig) rig="$2"; shift 2 ;;
-    --sensor-port) sensor_port="$2"; shift 2 ;;
-    --params) user_params+=("$(realpath -m "$2")"); shift 2 ;;
+    --object) need "$@"; object="$2"; shift 2 ;;
+    --mode) need "$@"; mode="$2"; shift 2 ;;
+    --strategy) need "$@"; strategy="$2"; shift 2 ;;
+    --alpha) need "$@"; alpha="$2"; shift 2 ;;
+    --touches) need "$@"; touches="$2"; shift 2 ;;
+    --seed) need "$@"; seed="$2"; shift 2 ;;
+    --out) need "$@"; out="$2"; shift 2 ;;
+    --real-time-factor) need "$@"; rtf="$2"; shift 2 ;;
+    --rig) need "$@"; rig="$2"; shift 2 ;;
+    --sensor-port) need "$@"; sensor_port="$2"; shift 2 ;;
+    --params) need "$@"; [ -f "$2" ] || die "--params $2: no such parameter file"
+              user_params+=("$(realpath -m "$2")"); shift 2 ;;
     --yes|-y) yes=1; shift ;;
     -h|--help) usage; exit 0 ;;
-    *) echo "explore.sh: unknown option '$1' (see --help)" >&2; exit 2 ;;
+    *) die "unknown option '$1'" ;;
   esac
 done
-case "$rig" in sim|hardware) ;; *) echo "explore.sh: --rig must be sim or hardware" >&2; exit 2 ;; esac
-[[ "$rtf" =~ ^[0-9]*\.?[0-9]+$ ]] || { echo "explore.sh: --real-time-factor must be a positive number" >&2; exit 2; }
-case "$rtf" in *.*) ;; *) rtf="$rtf.0" ;; esac  # a ROS double parameter needs the decimal point
+case "$rig" in sim|hardware) ;; *) die "--rig $rig: must be sim or hardware" ;; esac
 
 "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091
@@ -48,10 +51,10 @@ run_dir="$(realpath -m "${out:-$ROOT/runs/$(date +%Y%m%d-%H%M%S)}")"
 if [ -e "$run_dir/run.mcap" ]; then
   echo "explore.sh: $run_dir already holds a run; choose another --out" >&2; exit 2
 fi
-mkdir -p "$run_dir/logs"
 
-# Resolve and validate the experiment; the same files go to every node.
-plan_args=(--mode "$mode" --seed "$seed" --rig "$rig" --out "$run_dir")
+# Resolve and check the experiment (exit 2, nothing written, on a bad value);
+# the same files go to every node.
+plan_args=(--mode "$mode" --seed "$seed" --rig "$rig" --real-time-factor "$rtf" --out "$run_dir")
 [ -n "$object" ] && plan_args+=(--object "$object")
 [ -n "$strategy" ] && plan_args+=(--strategy "$strategy")
 [ -n "$alpha" ] && plan_args+=(--alpha "$alpha")
@@ -59,6 +62,8 @@ plan_args=(--mode "$mode" --seed "$seed" --rig "$rig" --out "$run_dir")
 for f in "${user_params[@]}"; do plan_args+=(--params "$f"); done
 mapfile -t files < <(python -m tactile_bringup.launch_plan plan "${plan_args[@]}") || exit 2
 [ "${#files[@]}" -gt 0 ] || exit 2
+mkdir -p "$run_dir/logs"
+case "$rtf" in *.*|*e*|*E*) ;; *) rtf="$rtf.0" ;; esac  # a ROS double parameter needs the decimal point
 params_args=()
 for f in "${files[@]}"; do params_args+=(--params-file "$f"); done
 

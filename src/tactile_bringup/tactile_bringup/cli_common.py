@@ -1,10 +1,42 @@
-"""Command-line pieces shared by the offline explorer and the benchmark."""
+"""Command-line pieces shared by the offline explorer, the benchmark and the launch plan.
+
+Values are parsed here (an integer, a finite number) and then checked against
+the rule of the node parameter they set (``param_checks.CLI_OPTIONS``), so the
+command line and a parameter file accept exactly the same values.
+"""
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Callable
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse whose errors are one line (``prog: error: ... (see --help)``), status 2."""
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        self.exit(2, f"{self.prog}: error: {message} (see --help)\n")
+
+
+def finite_float(text: str) -> float:
+    """A finite number (``nan`` and ``inf`` are refused)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a finite number")
+    return value
+
+
+def integer(text: str) -> int:
+    """An integer (``2.5`` and ``abc`` are refused with the value in the message)."""
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not an integer") from None
 
 
 def add_experiment_args(parser: argparse.ArgumentParser, several: bool = False) -> None:
@@ -12,13 +44,15 @@ def add_experiment_args(parser: argparse.ArgumentParser, several: bool = False) 
     parser.add_argument("--mode", choices=("2d", "3d"), default="2d", help="2d contour or 3d surface (default 2d)")
     parser.add_argument("--params", action="append", default=[], metavar="FILE",
                         help="ROS parameter file overriding node parameters (repeatable)")
-    parser.add_argument("--touches", type=int, default=None, help="touch budget (default: explorer.yaml)")
-    parser.add_argument("--alpha", type=float, default=None, help="uncertainty/travel trade-off of 'proposed'")
+    parser.add_argument("--touches", type=integer, default=None, help="touch budget ≥ 1 (default: explorer.yaml)")
+    parser.add_argument("--alpha", type=finite_float, default=None,
+                        help="uncertainty/travel trade-off of 'proposed' (≥ 0)")
     if not several:
         parser.add_argument("--object", default=None, help="object name or file (.csv 2D polygon, .stl/.obj mesh)")
         parser.add_argument("--strategy", default=None,
-                            help="proposed | uncertainty | random | sequential | info_gain (default proposed)")
-        parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+                            help="proposed | uncertainty | random | sequential | info_gain | info_travel "
+                                 "(default proposed)")
+        parser.add_argument("--seed", type=integer, default=0, help="seed of every random choice, ≥ 0 (default 0)")
 
 
 def progress_line(record: dict, total: int) -> str:
@@ -33,8 +67,9 @@ def run_main(body: Callable[[], int]) -> int:
     """Run ``body``; bad input ends with a message and status 2, Ctrl-C with 130."""
     try:
         return body()
-    except ValueError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+    except ValueError as exc:  # one line per problem (a ParamsError may hold several)
+        for line in str(exc).splitlines() or [type(exc).__name__]:
+            print(f"error: {line}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

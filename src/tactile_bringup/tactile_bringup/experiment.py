@@ -18,6 +18,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 import yaml
 
+from tactile_common.param_spec import Rule
 from tactile_common.params_file import node_params, package_config
 
 #: node name -> (package, defaults file)
@@ -30,6 +31,17 @@ NODE_DEFAULTS = {
     "explorer": ("tactile_bringup", "explorer.yaml"),
 }
 MODES = ("2d", "3d")
+
+#: The explorer's parameters that define the run (read from the files by the
+#: offline loop and the explorer node alike; the explorer also declares them).
+RUN_PARAMETERS = {
+    "touches": (20, "touch budget", Rule(ge=1)),
+    "max_travel_m": (0.0, "travel budget (0 = none)", Rule(ge=0.0)),
+    "confidence_max_var_m2": (0.0, "stop when the max variance on the estimated surface is below (0 = off)",
+                              Rule(ge=0.0)),
+    "evaluation_resolution_m": (0.002, "IoU lattice spacing (simulation only)", Rule(gt=0.0)),
+    "start_tip_xyz_m": ([0.35, 0.0, 0.06], "tip centre where exploration starts (world)", Rule(length=3)),
+}
 
 
 def default_params_files(mode: str) -> list[Path]:
@@ -58,9 +70,22 @@ class Experiment:
     touches: Optional[int] = None
     user_params_files: Sequence[Path] = field(default_factory=list)
 
+    #: the explorer's run parameters (see :data:`RUN_PARAMETERS`)
+    RUN_PARAMETERS = RUN_PARAMETERS
+
     def __post_init__(self) -> None:
+        """Resolve and check everything: a bad value, an unknown name or a contradiction
+        raises :class:`~tactile_bringup.param_checks.ParamsError` (one line per problem)."""
+        from .param_checks import check_cli_values, check_experiment
+
+        check_cli_values({"--alpha": self.alpha, "--touches": self.touches, "--strategy": self.strategy,
+                          "--seed": self.seed})
         self.params_files = default_params_files(self.mode) + [Path(p) for p in self.user_params_files]
+        for path in self.params_files:
+            if not Path(path).is_file():
+                raise ValueError(f"{path}: no such parameter file")
         self.overrides = self._overrides()
+        check_experiment(self)
         self._resolve()
 
     @classmethod
@@ -81,17 +106,17 @@ class Experiment:
         for path in self.params_files:
             if not Path(path).exists():
                 raise ValueError(f"{path}: no such parameter file")
-        explorer = self.node_params("explorer")
+        explorer = {**{k: v[0] for k, v in RUN_PARAMETERS.items()}, **self.node_params("explorer")}
         self.object_name = self.object_name or str(self.node_params("sim_rig").get("object", "ellipse"))
         if self.overrides:
             self.overrides["sim_rig"]["object"] = self.object_name
         self.strategy = self.node_params("soc_planner").get("strategy", "proposed")
         self.alpha = self.node_params("soc_planner").get("alpha")
-        self.touches = int(explorer.get("touches", 20))
-        self.max_travel_m = float(explorer.get("max_travel_m", 0.0))
-        self.confidence_max_var_m2 = float(explorer.get("confidence_max_var_m2", 0.0))
-        self.evaluation_resolution_m = float(explorer.get("evaluation_resolution_m", 0.002))
-        self.start_tip_xyz = np.asarray(explorer.get("start_tip_xyz_m", [0.35, 0.0, 0.06]), dtype=float)
+        self.touches = int(explorer["touches"])
+        self.max_travel_m = float(explorer["max_travel_m"])
+        self.confidence_max_var_m2 = float(explorer["confidence_max_var_m2"])
+        self.evaluation_resolution_m = float(explorer["evaluation_resolution_m"])
+        self.start_tip_xyz = np.asarray(explorer["start_tip_xyz_m"], dtype=float)
 
     # -- parameters ------------------------------------------------------------
     def _overrides(self) -> dict[str, dict[str, Any]]:

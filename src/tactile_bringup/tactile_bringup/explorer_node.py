@@ -41,14 +41,14 @@ REQUEST = "/planner/request"
 PLANNER_STATUS = "/planner/status"
 
 PARAMS = {
-    "mode": ("2d", "'2d' or '3d'"),
+    "mode": ("2d", "'2d' or '3d'", {"choices": ("2d", "3d")}),
     "params_files": ([""], "the parameter files every node got (defaults, mode, user, overrides)"),
     "out_dir": ("runs/latest", "where report.json, progress.png and the shape go"),
     "evaluate": (True, "simulation: measure IoU and surface error against the object"),
-    "start_tolerance_m": (0.003, "the tip counts as at the start position within this distance"),
-    "start_timeout_s": (120.0, "give up if the tip does not reach the start position (wall clock)"),
-    "touch_timeout_s": (120.0, "give up if a touch does not end (wall clock)"),
-    "max_unreachable": (10, "stop after this many unreachable goals in a row"),
+    "start_tolerance_m": (0.003, "the tip counts as at the start position within this distance", {"gt": 0.0}),
+    "start_timeout_s": (120.0, "give up if the tip does not reach the start position (wall clock)", {"gt": 0.0}),
+    "touch_timeout_s": (120.0, "give up if a touch does not end (wall clock)", {"gt": 0.0}),
+    "max_unreachable": (10, "stop after this many unreachable goals in a row", {"ge": 1}),
 }
 
 

@@ -1,9 +1,14 @@
-"""Resolve an experiment for the shell launcher: ``python -m tactile_bringup.launch_plan``.
+"""Resolve an experiment for the shell launchers: ``python -m tactile_bringup.launch_plan``.
 
-``plan``: validate the choices (object, strategy, files), write
-``<out>/params/overrides.yaml`` and print the parameter files every node gets,
-one per line, in order. ``wait-joint-states``: exit 0 once /joint_states
-delivers a message, 1 after the timeout (the real rig's check).
+``plan`` (scripts/explore.sh): check every choice and file against the nodes'
+parameter tables (values, names, contradictions; see
+:mod:`tactile_bringup.param_checks`), then, and only then, create
+``<out>/params/`` with a copy of each file and the overrides, and print the
+files every node gets, one per line, in order. ``replay`` (scripts/replay.sh):
+check the player's options and any ``--params`` files. Both exit 2 with one
+line per problem before anything is started or written.
+``wait-joint-states``: exit 0 once /joint_states delivers a message, 1 after
+the timeout (the real rig's check).
 """
 
 from __future__ import annotations
@@ -15,17 +20,15 @@ import time
 from pathlib import Path
 from typing import Optional, Sequence
 
-from .cli_common import add_experiment_args, run_main
+from .cli_common import Parser, add_experiment_args, finite_float, run_main
 from .experiment import Experiment
-
-STRATEGIES = ("proposed", "uncertainty", "random", "sequential", "info_gain")
+from .param_checks import ParamsError, check_cli_values, check_files
 
 
 def plan(args: argparse.Namespace) -> int:
+    check_cli_values({"--real-time-factor": args.real_time_factor})
     exp = Experiment(mode=args.mode, object_name=args.object, strategy=args.strategy, alpha=args.alpha,
                      seed=args.seed, touches=args.touches, user_params_files=args.params)
-    if exp.strategy not in STRATEGIES:
-        raise ValueError(f"unknown strategy '{exp.strategy}'; choose one of {', '.join(STRATEGIES)}")
     if args.rig == "sim":
         from tactile_sim.objects import make_object
 
@@ -46,18 +49,38 @@ def plan(args: argparse.Namespace) -> int:
     return 0
 
 
+def replay(args: argparse.Namespace) -> int:
+    """Check replay.sh's options (the player's rules) and its --params files."""
+    check_cli_values({"--rate": args.rate, "--wait": args.wait, "--linger": args.linger})
+    for path in args.params:
+        if not Path(path).is_file():
+            raise ValueError(f"{path}: no such parameter file")
+    errors = check_files(args.params)
+    if errors:
+        raise ParamsError(errors)
+    return 0
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tactile_bringup.launch_plan")
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("plan", help="validate and write the run's parameter files")
+    parser = Parser(prog="python -m tactile_bringup.launch_plan")
+    sub = parser.add_subparsers(dest="cmd", required=True, parser_class=Parser)
+    p = sub.add_parser("plan", prog="explore.sh", help="check and write the run's parameter files")
     add_experiment_args(p)
     p.add_argument("--rig", choices=("sim", "hardware"), default="sim")
+    p.add_argument("--real-time-factor", type=finite_float, default=None)
     p.add_argument("--out", required=True)
+    r = sub.add_parser("replay", prog="replay.sh", help="check replay.sh's options and --params files")
+    r.add_argument("--rate", type=finite_float, default=None)
+    r.add_argument("--wait", type=finite_float, default=None)
+    r.add_argument("--linger", type=finite_float, default=None)
+    r.add_argument("--params", action="append", default=[])
     w = sub.add_parser("wait-joint-states", help="wait for /joint_states (real rig check)")
-    w.add_argument("--timeout", type=float, default=10.0)
+    w.add_argument("--timeout", type=finite_float, default=10.0)
     args = parser.parse_args(argv)
     if args.cmd == "plan":
         return run_main(lambda: plan(args))
+    if args.cmd == "replay":
+        return run_main(lambda: replay(args))
     return wait_joint_states(args.timeout)
 
 

@@ -29,20 +29,23 @@ _ACK_TIMEOUT_S = 2.0  # at the end, wait at most this long for acknowledgements
 _LOOP_GAP_S = 0.01  # pause between two passes of a loop
 
 
+PARAMS = {
+    "bag": ("", "path of the .mcap recording to play"),
+    "rate": (1.0, "playback speed factor", {"gt": 0.0}),
+    "loop": (False, "start again at the end", {"dynamic": True}),
+    "clock": (False, "publish /clock from the recorded times"),
+    "clock_hz": (100.0, "/clock publish rate", {"gt": 0.0}),
+    "wait_for_subscribers_s": (2.0, "wait at most this long for subscribers before starting", {"ge": 0.0, "dynamic": True}),
+    "linger_s": (0.0, "keep publishers alive this long after the end (latched topics)", {"ge": 0.0, "dynamic": True}),
+    "progress_period_s": (1.0, "progress log period", {"gt": 0.0}),
+    "queue_depth": (100, "publisher depth of volatile topics", {"ge": 1}),
+}
+
+
 class PlayerNode(Node):
     def __init__(self) -> None:
         super().__init__("player")
-        p = declare_checked(self, {
-            "bag": ("", "path of the .mcap recording to play"),
-            "rate": (1.0, "playback speed factor"),
-            "loop": (False, "start again at the end"),
-            "clock": (False, "publish /clock from the recorded times"),
-            "clock_hz": (100.0, "/clock publish rate"),
-            "wait_for_subscribers_s": (2.0, "wait at most this long for subscribers before starting"),
-            "linger_s": (0.0, "keep publishers alive this long after the end (latched topics)"),
-            "progress_period_s": (1.0, "progress log period"),
-            "queue_depth": (100, "publisher depth of volatile topics"),
-        })
+        p = declare_checked(self, PARAMS)
         selected = string_list_parameter(self, "topics", "topics to play; empty = all recorded")
         if not p.bag:
             raise ValueError("parameter 'bag' (the .mcap to play) is required")

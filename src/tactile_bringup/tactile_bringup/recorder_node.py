@@ -22,17 +22,20 @@ from tactile_bringup.msgdefs import DefinitionNotFound
 from tactile_common.node_main import run_node
 
 
+PARAMS = {
+    "output": ("", "path of the .mcap file to write (never overwritten)"),
+    "chunk_size_bytes": (1048576, "uncompressed size at which a chunk is written", {"ge": 1}),
+    "compression": ("zstd", f"chunk compression: {', '.join(sorted(COMPRESSIONS))}", {"choices": tuple(sorted(COMPRESSIONS))}),
+    "max_chunk_interval_s": (5.0, "write the open chunk at least this often (0 = only when full)", {"ge": 0.0}),
+    "discovery_period_s": (1.0, "period of the topic discovery", {"gt": 0.0}),
+    "queue_depth": (100, "subscription depth for volatile topics", {"ge": 1}),
+}
+
+
 class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
-        p = declare_checked(self, {
-            "output": ("", "path of the .mcap file to write (never overwritten)"),
-            "chunk_size_bytes": (1048576, "uncompressed size at which a chunk is written"),
-            "compression": ("zstd", f"chunk compression: {', '.join(sorted(COMPRESSIONS))}"),
-            "max_chunk_interval_s": (5.0, "write the open chunk at least this often (0 = only when full)"),
-            "discovery_period_s": (1.0, "period of the topic discovery"),
-            "queue_depth": (100, "subscription depth for volatile topics"),
-        })
+        p = declare_checked(self, PARAMS)
         self._topics = string_list_parameter(self, "topics", "topics to record; empty = every topic seen")
         self._exclude = set(string_list_parameter(self, "exclude", "topics never recorded"))
         if not p.output:

@@ -1,7 +1,8 @@
 """Parameter tables: the type, range and mutability of every node parameter, ROS-free.
 
 A node's table maps each parameter name to ``(default, description)`` or
-``(default, description, Rule(...))``. The default fixes the type (bool,
+``(default, description, rule)``, the rule a :class:`Rule` or the same as a
+dict (``{"gt": 0.0}``, ``{"choices": ("2d", "3d"), "dynamic": True}``). The default fixes the type (bool,
 integer, double, string, or an array of one of them, as ROS types a
 parameter); the :class:`Rule` adds the allowed values and whether the running
 node honours a change (``dynamic``; every other parameter is read once at
@@ -133,6 +134,8 @@ def spec(name: str, entry: Sequence[Any]) -> ParamSpec:
         raise TypeError(f"parameter table entry '{name}' must be (default, description[, Rule])")
     default, description = entry[0], entry[1]
     rule = entry[2] if len(entry) == 3 else ANY
+    if isinstance(rule, Mapping):  # tables outside tactile_common may write the rule as a dict
+        rule = Rule(**rule)
     return ParamSpec(name, default, description, rule, type_name(default))
 
 

@@ -29,35 +29,35 @@ from .travel import TravelError, make_backend
 
 #: name -> (default, description): the node's ROS parameters, also the keys of ``from_params``.
 PARAMETERS: dict[str, tuple[Any, str]] = {
-    "mode": ("2d", "'2d' (plane z = plane height, 8-connected) or '3d' (26-connected); must match the map"),
-    "strategy": ("proposed", f"one of {STRATEGIES}"),
-    "score_form": ("normalized", f"proposed strategy form: one of {SCORE_FORMS}"),
-    "alpha": (1.0, "uncertainty/travel trade-off of the proposed strategy (→∞: most uncertain, →0: nearest)"),
-    "seed": (0, "seed of the planner's random generator (random strategy)"),
-    "backend": ("lmdp", "travel costs: 'lmdp' (one linear solve) or 'dijkstra'"),
-    "solver": ("auto", "LMDP linear solver: 'auto' (2D LU, 3D CG), 'lu' or 'cg'"),
-    "cost_rate_per_m": (200.0, "LMDP state cost per metre of travel (nats/m); larger = closer to shortest paths"),
-    "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × graph bounding-box diagonal ≤ this (no underflow)"),
-    "cg_max_rate_nats": (3.0, "numerics with CG (3D): rate × graph bounding-box diagonal ≤ this, so every cost stays within CG's accuracy"),
-    "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients"),
-    "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)"),
-    "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with mean ≤ margin + shell (0 = all free space)"),
-    "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths"),
-    "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)"),
+    "mode": ("2d", "'2d' (plane z = plane height, 8-connected) or '3d' (26-connected); must match the map", {"choices": ("2d", "3d")}),
+    "strategy": ("proposed", f"one of {STRATEGIES}", {"choices": STRATEGIES}),
+    "score_form": ("normalized", f"proposed strategy form: one of {SCORE_FORMS}", {"choices": SCORE_FORMS}),
+    "alpha": (1.0, "uncertainty/travel trade-off of the proposed strategy (→∞: most uncertain, →0: nearest)", {"ge": 0.0}),
+    "seed": (0, "seed of the planner's random generator (random strategy)", {"ge": 0}),
+    "backend": ("lmdp", "travel costs: 'lmdp' (one linear solve) or 'dijkstra'", {"choices": ("lmdp", "dijkstra")}),
+    "solver": ("auto", "LMDP linear solver: 'auto' (2D LU, 3D CG), 'lu' or 'cg'", {"choices": ("auto", "lu", "cg")}),
+    "cost_rate_per_m": (200.0, "LMDP state cost per metre of travel (nats/m); larger = closer to shortest paths", {"gt": 0.0}),
+    "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × graph bounding-box diagonal ≤ this (no underflow)", {"gt": 0.0}),
+    "cg_max_rate_nats": (3.0, "numerics with CG (3D): rate × graph bounding-box diagonal ≤ this, so every cost stays within CG's accuracy", {"gt": 0.0}),
+    "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients", {"gt": 0.0, "lt": 1.0}),
+    "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)", {"ge": 1}),
+    "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with mean ≤ margin + shell (0 = all free space)", {"ge": 0.0}),
+    "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths", {"gt": 0.0}),
+    "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
-    "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose"),
-    "tip_radius_m": (0.01, "fingertip radius"),
-    "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps"),
-    "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable"),
-    "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)"),
+    "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
+    "tip_radius_m": (0.01, "fingertip radius", {"gt": 0.0}),
+    "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps", {"ge": 0}),
+    "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
+    "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
-                           "finger would touch them with its side); -1 = off"),
-    "tip_speed_mps": (0.1, "free-space tip speed (motion model)"),
-    "approach_speed_mps": (0.02, "approach/retract speed (motion model)"),
-    "dwell_s": (0.5, "time at contact (motion model)"),
-    "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid"),
-    "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update"),
-    "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance"),
+                           "finger would touch them with its side); -1 = off", {"ge": -1.0, "le": 1.0}),
+    "tip_speed_mps": (0.1, "free-space tip speed (motion model)", {"gt": 0.0}),
+    "approach_speed_mps": (0.02, "approach/retract speed (motion model)", {"gt": 0.0}),
+    "dwell_s": (0.5, "time at contact (motion model)", {"ge": 0.0}),
+    "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid", {"ge": 0.0}),
+    "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update", {"gt": 0.0}),
+    "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),
     "smooth_path": (True, "shortcut the lattice path (never entering the margin)"),
 }
 
@@ -65,7 +65,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
 #: Parameters of the node only (accepted and ignored by ``TouchPlanner.from_params``).
 NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
     "frame_id": ("world", "frame of the goal and path (the map's frame)"),
-    "request_timeout_s": (30.0, "answer a request with status 'timeout' if no new enough map/tip pose arrives in time"),
+    "request_timeout_s": (30.0, "answer a request with status 'timeout' if no new enough map/tip pose arrives in time", {"gt": 0.0}),
 }
 
 
@@ -106,7 +106,7 @@ class TouchPlanner:
         unknown = set(params) - set(PARAMETERS)
         if unknown:
             raise ValueError(f"unknown planner parameter(s) {sorted(unknown)}")
-        p = {k: v for k, (v, _) in PARAMETERS.items()}
+        p = {k: entry[0] for k, entry in PARAMETERS.items()}
         p.update(params)
         if p["mode"] not in ("2d", "3d"):
             raise ValueError(f"mode must be '2d' or '3d', got '{p['mode']}'")

@@ -28,10 +28,10 @@ from tactile_sim.sensor_model import SensorModelConfig
 PARAMS = {
     "link_path": ("/tmp/tactile_sim/sensor", "symlink to the pty the driver opens"),
     "layout_file": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
-    "frame_rate_hz": (200.0, "frame rate in node-clock time"),
-    "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)"),
-    "pose_timeout_s": (0.1, "without a pose this long, the timer drives the device"),
-    "seed": (0, "seed of the noise, baselines and faults"),
+    "frame_rate_hz": (200.0, "frame rate in node-clock time", {"gt": 0.0}),
+    "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)", {"gt": 0.0}),
+    "pose_timeout_s": (0.1, "without a pose this long, the timer drives the device", {"gt": 0.0}),
+    "seed": (0, "seed of the noise, baselines and faults", {"ge": 0}),
     **OBJECT_PARAMETERS,
     **DEVICE_PARAMETERS,
 }
