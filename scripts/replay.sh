@@ -38,16 +38,22 @@ while [ $# -gt 0 ]; do
   esac
 done
 [ -f "$BAG" ] || die "recording '$BAG' not found"
-[[ "$RATE" =~ ^[0-9]*\.?[0-9]+$ ]] && awk "BEGIN{exit !($RATE > 0)}" || die "--rate must be a positive number, got '$RATE'"
-
-# ROS double parameters need a decimal point ("2" would be an integer).
-as_double() { case "$1" in *.*|*e*|*E*) echo "$1" ;; *) echo "$1.0" ;; esac; }
-RATE="$(as_double "$RATE")"; WAIT="$(as_double "$WAIT")"; LINGER="$(as_double "$LINGER")"
 
 "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091
 source "${TACTILE_VENV:-$ROOT/.venv}/tactile.env"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Check the options against the player's parameter table (and any --params file
+# against every node's) before anything starts: exit 2 with one line per problem.
+check=(--rate "$RATE" --wait "$WAIT" --linger "$LINGER")
+for ((i = 0; i < ${#PARAMS[@]}; i += 2)); do
+  [ "${PARAMS[$i]}" = --params ] && check+=(--params "${PARAMS[$((i + 1))]}")
+done
+python -m tactile_bringup.launch_plan replay "${check[@]}" || exit 2
+
+# ROS double parameters need a decimal point ("2" would be an integer).
+as_double() { case "$1" in *.*|*e*|*E*) echo "$1" ;; *) echo "$1.0" ;; esac; }
+RATE="$(as_double "$RATE")"; WAIT="$(as_double "$WAIT")"; LINGER="$(as_double "$LINGER")"
 if [ "$OFFLINE" = true ]; then  # no graph: rebuild the estimate and the report from the recording
   exec python -m tactile_bringup.reanalyse "$BAG" "${PARAMS[@]}"
 fi

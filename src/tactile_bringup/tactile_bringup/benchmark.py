@@ -21,7 +21,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import plots
-from .cli_common import add_experiment_args, run_main
+from .cli_common import Parser, add_experiment_args, integer, run_main
 from .progress_bar import ProgressBar
 from .sweep import failure_line, guarded, is_failure
 from .experiment import Experiment
@@ -132,12 +132,12 @@ def _fmt(v: Optional[float], digits: int) -> str:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="tactile-benchmark", description=__doc__.splitlines()[0])
+    parser = Parser(prog="tactile-benchmark", description=__doc__.splitlines()[0])
     add_experiment_args(parser, several=True)
     parser.add_argument("--objects", default=None, help="comma-separated objects (default: all built-in)")
     parser.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
-    parser.add_argument("--seeds", type=int, default=5, help="seeds 0..N-1 (default 5)")
-    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel runs (default: cores)")
+    parser.add_argument("--seeds", type=integer, default=5, help="seeds 0..N-1, N ≥ 1 (default 5)")
+    parser.add_argument("--jobs", type=integer, default=os.cpu_count() or 1, help="parallel runs ≥ 1 (default: cores)")
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSON",
                         help="no runs: rebuild summary.md and the plots of an earlier runs.json into --out")
@@ -155,8 +155,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
         objects = args.objects.split(",") if args.objects else list_objects(args.mode)
         strategies = args.strategies.split(",")
-        if args.seeds < 1:
-            raise ValueError("--seeds must be at least 1")
+        _check_args(args, objects, strategies)
         touches = args.touches
         if touches is None:
             touches = 30 if args.mode == "2d" else 60
@@ -211,6 +210,28 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 1 if failures else 0
 
     return run_main(body)
+
+
+def _check_args(args: argparse.Namespace, objects: Sequence[str], strategies: Sequence[str]) -> None:
+    """Every value before the pool starts (one line per problem, exit 2): the counts, each
+    strategy against the planner's rule, each object name or file."""
+    from tactile_sim.objects import make_object
+
+    from .param_checks import ParamsError, check_cli, param_spec
+
+    errors = [f"--{k} {v}: must be ≥ 1" for k, v in (("seeds", args.seeds), ("jobs", args.jobs)) if v < 1]
+    if args.touches is not None and check_cli("--touches", args.touches):
+        errors.append(check_cli("--touches", args.touches))
+    allowed = param_spec("soc_planner", "strategy").rule.choices
+    errors += [f"--strategies: unknown strategy '{s}' (one of {', '.join(allowed)})" for s in strategies
+               if s not in allowed]
+    for o in objects:
+        try:
+            make_object(o, mode=args.mode)
+        except ValueError as exc:
+            errors.append(f"--objects: {exc}")
+    if errors:
+        raise ParamsError(errors)
 
 
 if __name__ == "__main__":

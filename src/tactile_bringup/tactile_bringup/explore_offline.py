@@ -8,20 +8,19 @@ Example::
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 from typing import Optional, Sequence
 
 from . import plots
-from .cli_common import add_experiment_args, progress_line, run_main
+from .cli_common import Parser, add_experiment_args, progress_line, run_main
 from .experiment import Experiment
 from .loop import ExplorationLoop
 from .report import check_report, write_report
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    parser = argparse.ArgumentParser(prog="tactile-explore-offline", description=__doc__.splitlines()[0])
+    parser = Parser(prog="tactile-explore-offline", description=__doc__.splitlines()[0])
     add_experiment_args(parser)
     parser.add_argument("--report", type=Path, default=Path("report.json"), help="report JSON path")
     parser.add_argument("--plot", type=Path, default=None, help="progress figure (PNG)")
