@@ -8,6 +8,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
+from rclpy.duration import Duration
 from std_msgs.msg import Header
 
 from tactile_common import qos, topics
@@ -19,6 +20,7 @@ pytestmark = pytest.mark.graph
 CONFIG = FsPath(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
 CENTER = np.array([0.5, 0.0])
 RADIUS = 0.05
+OLD_RADIUS = 0.03  # the too-old map's circle: a goal planned on it misses RADIUS
 
 
 def _quat_x_axis(q) -> np.ndarray:
@@ -45,9 +47,12 @@ def test_goal_and_path_for_a_request(ros_graph):
                        and goals.publishers and paths.publishers and status.publishers,
                        20, "planner subscriptions and writers")
     pub_req.publish(Header(stamp=Time(sec=5)))
-    pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=1)))  # too old
+    old = sphere_map(64, 2, radius_m=OLD_RADIUS, seed=3)
+    pub_map.publish(to_pointcloud2(old, "world", stamp=Time(sec=1)))  # too old
     pub_tip.publish(tip)
     ros_graph.wait_for(lambda: pub_map.get_subscription_count() > 0, 20, "map subscription")
+    # delivered before the valid map replaces it in the latched history (depth 1)
+    assert pub_map.wait_for_all_acked(Duration(seconds=20))
     assert not goals
     pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=5)))
 
