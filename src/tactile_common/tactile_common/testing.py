@@ -204,6 +204,15 @@ class RosGraph:
                 raise GraphTestError(f"timed out after {timeout_s:.0f} s waiting for {what}\n{self.logs()}")
             self.spin_once(0.05)
 
+    def observe(self, duration_s: float, what: str) -> None:
+        """Spin for ``duration_s`` while something must *not* happen (no trajectory in a dry run).
+
+        Never a synchronisation: to wait for something to happen, use :meth:`wait_for`.
+        Fails early, with the logs, if a node process exits.
+        """
+        end = time.monotonic() + duration_s
+        self.wait_for(lambda: time.monotonic() >= end, duration_s + 5.0, f"{duration_s:g} s of {what}")
+
     def collect(self, topic: str, msg_type: Any, qos: QoSProfile, raw: bool = False) -> Received:
         """Subscribe now; the returned list fills with messages as the test spins."""
         received = Received()
