@@ -41,7 +41,7 @@ def test_missed_touch_gives_free_space_then_unreachable_goal_moves_nothing(ros_g
     g = ros_graph
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
-    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     g.start("sim", SIM)
     g.start("arm", ARM + NO_START)
@@ -113,7 +113,7 @@ def test_a_contact_still_on_its_way_at_the_end_of_the_approach_is_not_taken_for_
     g = ros_graph
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
-    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     clock = g.collect(topics.CLOCK, Clock, qos.CLOCK)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     g.start("sim", SIM)

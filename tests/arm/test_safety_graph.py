@@ -52,7 +52,7 @@ def _timed(graph, topic, msg_type, profile):
 
 def test_dry_run_plans_and_publishes_no_trajectory(ros_graph):
     g = ros_graph
-    sent = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    sent = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     planned = g.collect("/arm_commander/planned_trajectory", JointTrajectory, qos.EVENTS)
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     g.start("arm", ["arm_commander", "--ros-args", *ARM_PARAMS, "-p", "dry_run:=true"])
@@ -74,7 +74,7 @@ def test_dry_run_plans_and_publishes_no_trajectory(ros_graph):
 
 def test_estop_during_approach_stops_the_rig_within_a_control_period(ros_graph):
     g = ros_graph
-    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     states = _timed(g, topics.JOINT_STATES, JointState, qos.SENSOR)
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     rtf = 2.0
@@ -113,7 +113,7 @@ def test_estop_during_approach_stops_the_rig_within_a_control_period(ros_graph):
 
 def test_stale_joint_states_stop_motion(ros_graph):
     g = ros_graph
-    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
     js = JointState(name=NAMES, position=HOME)
@@ -139,7 +139,7 @@ def test_stale_joint_states_stop_motion(ros_graph):
 def test_move_to_start_is_planned_again_once_stalled_joint_states_flow(ros_graph):
     """The start-up move ends on a joint-state stall (stop sent), then runs again when they flow."""
     g = ros_graph
-    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.EVENTS)
+    sent = _timed(g, topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
     js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
     js = JointState(name=NAMES, position=HOME)  # a controller that never moves: the move stays in progress
     feeding = {"on": True}

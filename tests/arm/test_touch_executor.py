@@ -69,6 +69,7 @@ class FakeArm:
 
     def back_off(self, contact_xyz, clearance_m):
         self.back_off_args = (np.asarray(contact_xyz), clearance_m)
+        self.back_off_xyz = np.asarray(contact_xyz) + [0.0, 0.0, 0.02]  # where the fake backs off to
         return self._verb("back_off", 0.01)
 
     def is_task_complete(self):
@@ -101,6 +102,7 @@ def test_contact_touch():
     assert (r.outcome, r.observation_stamp_ns, r.goal_stamp_ns) == ("contact", 42, 7)
     assert r.travel_m == pytest.approx(0.34)
     assert r.duration_s >= 0.5  # dwell included
+    assert r.end_xyz_m == (0.4, 0.2, 0.06)  # nominal end: the pre-touch point (not the measured pose)
 
 
 def test_free_space_touch_publishes_the_probe_end():
@@ -143,6 +145,7 @@ def test_contact_on_the_path_is_kept_and_the_arm_backs_off():
     r = done[0]
     assert (r.outcome, r.observation_stamp_ns) == ("contact", 42) and r.reason.startswith("path:")
     assert free == [] and r.travel_m == pytest.approx(0.31)
+    np.testing.assert_allclose(r.end_xyz_m, [0.45, 0.1, 0.08])  # the next touch is planned from the back-off point
 
 
 @pytest.mark.parametrize("back_off, where", [(TaskResult.REJECTED, "path"), (TaskResult.ABORTED, "retract")])

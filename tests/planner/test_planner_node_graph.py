@@ -11,6 +11,9 @@ from nav_msgs.msg import Path
 from rclpy.duration import Duration
 from std_msgs.msg import Header
 
+from tactile_common import stamps
+from tactile_common.cycle import PlanRequest
+from tactile_common.cycle_msgs import answer_from_msg, request_msg
 from tactile_common import qos, topics
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_planner.synthetic import sphere_map
@@ -36,7 +39,7 @@ def test_goal_and_path_for_a_request(ros_graph):
     status = ros_graph.collect("/planner/status", DiagnosticStatus, qos.EVENTS)
     pub_map = node.create_publisher(type(to_pointcloud2(sphere_map(8, 2)[:0], "world")), topics.VARIANCE_MAP, qos.MAP)
     pub_tip = node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
-    pub_req = node.create_publisher(Header, "/planner/request", qos.EVENTS)
+    pub_req = node.create_publisher(DiagnosticStatus, "/planner/request", qos.EVENTS)
     pub_done = node.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
 
     tip = PoseStamped()
@@ -46,7 +49,7 @@ def test_goal_and_path_for_a_request(ros_graph):
     ros_graph.wait_for(lambda: pub_req.get_subscription_count() > 0 and pub_tip.get_subscription_count() > 0
                        and goals.publishers and paths.publishers and status.publishers,
                        20, "planner subscriptions and writers")
-    pub_req.publish(Header(stamp=Time(sec=5)))
+    pub_req.publish(request_msg(PlanRequest(request_id=7, min_map_stamp_ns=5_000_000_000)))
     old = sphere_map(64, 2, radius_m=OLD_RADIUS, seed=3)
     pub_map.publish(to_pointcloud2(old, "world", stamp=Time(sec=1)))  # too old
     pub_tip.publish(tip)
@@ -63,6 +66,8 @@ def test_goal_and_path_for_a_request(ros_graph):
     ros_graph.wait_for(tip_again, 20, "goal and path")
     goal, path = goals[0], paths[0]
     assert goal.header.stamp == path.header.stamp
+    assert stamps.stamp_ns(goal.header.stamp) == 7  # the goal's id is the request it answers
+    assert answer_from_msg(status[-1]).request_id == 7
     assert status and status[-1].message == "ok"
     g = np.array([goal.pose.position.x, goal.pose.position.y, goal.pose.position.z])
     # pre-touch point on the analytic circle's offset: radius + standoff + tip radius, in the plane
@@ -83,7 +88,18 @@ def test_goal_and_path_for_a_request(ros_graph):
     ros_graph.wait_for(lambda: pub_done.get_subscription_count() > 0, 10, "touch_done subscription")
     pub_done.publish(done)
     ros_graph.wait_for(lambda: "excluding candidates" in ros_graph.procs["planner"].log(), 10, "exclusion logged")
-    pub_req.publish(Header(stamp=Time(sec=5)))
+    pub_req.publish(request_msg(PlanRequest(request_id=8, min_map_stamp_ns=5_000_000_000)))
     ros_graph.wait_for(lambda: len(goals) >= 2 and len(status) > n_status, 20, "second goal")
     g2 = np.array([goals[1].pose.position.x, goals[1].pose.position.y])
     assert np.linalg.norm(g2 - g[:2]) > 0.02
+
+    # the same request again (a re-send, or history after a restart): the same answer, not a new plan
+    n_goals = len(goals)
+    pub_req.publish(request_msg(PlanRequest(request_id=8, min_map_stamp_ns=5_000_000_000)))
+    ros_graph.wait_for(lambda: len(goals) > n_goals, 20, "the stored answer again")
+    assert goals[-1].header.stamp == goals[1].header.stamp and goals[-1].pose == goals[1].pose
+    # an older request than one already seen is superseded: no answer
+    pub_req.publish(request_msg(PlanRequest(request_id=3, min_map_stamp_ns=0)))
+    pub_req.publish(request_msg(PlanRequest(request_id=9, min_map_stamp_ns=0)))
+    ros_graph.wait_for(lambda: any(answer_from_msg(s).request_id == 9 for s in status), 20, "answer to request 9")
+    assert not any(answer_from_msg(s).request_id == 3 for s in status)

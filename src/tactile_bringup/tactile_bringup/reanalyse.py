@@ -22,6 +22,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message
 
 from tactile_common import topics
+from tactile_common.cycle_msgs import request_from_msg
 from tactile_common.params_file import node_params
 from tactile_common.pointcloud import from_pointcloud2
 from tactile_common.stamps import stamp_ns
@@ -57,13 +58,18 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
     planner = make_planner(exp)
     tip = np.asarray(exp.start_tip_xyz, dtype=float)
     decisions: list[dict] = []
-    wanted = [t for t in (topics.CONTACTS, topics.GOAL, topics.PLANNER_STATUS, topics.TOUCH_DONE) if t in recording.topics]
+    wanted = [t for t in (topics.CONTACTS, topics.GOAL, topics.PLANNER_STATUS, topics.TOUCH_DONE, topics.REQUEST)
+              if t in recording.topics]
     if topics.TOUCH_DONE not in wanted or topics.CONTACTS not in wanted:
         raise ValueError(f"{bag} has no {topics.TOUCH_DONE} or {topics.CONTACTS}: not an exploration run")
     types = {t: message_class(recording.topics[t].type_name) for t in wanted}
-    observations, goals, decision_ms = {}, {}, {}
+    observations, goals, decision_ms, starts, done_goals = {}, {}, {}, {}, set()
     for topic, _, data in recording.messages(wanted):
         msg = deserialize_message(data, types[topic])
+        if topic == topics.REQUEST:  # where each touch was planned from (request id = goal stamp)
+            req = request_from_msg(msg)
+            starts[req.request_id] = req.start_xyz_m
+            continue
         if topic == topics.CONTACTS:
             points = from_pointcloud2(msg)
             if len(points):
@@ -78,8 +84,13 @@ def reanalyse(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evalua
             values = {kv.key: kv.value for kv in msg.values}
             travel, duration = float(values.get("travel_m") or 0), float(values.get("duration_s") or 0)
             obs_ns = int(values.get("observation_stamp_ns") or 0)
+            goal_ns = int(values.get("goal_stamp_ns") or 0)
+            if goal_ns in done_goals:
+                continue  # a report sent again (durable topics): one touch
+            done_goals.add(goal_ns)
             if msg.message in ("contact", "free_space") and obs_ns in observations:
-                goal_ns = int(values.get("goal_stamp_ns") or 0)
+                if starts.get(goal_ns) is not None:
+                    tip = np.asarray(starts[goal_ns], dtype=float)
                 plan = planner.plan(run.estimator.map_array(), tip)
                 record = run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,
                                        decision_ms.get(goal_ns, float("nan")))

@@ -92,7 +92,9 @@ class RecorderNode(Node):
             return
         self._subs[topic] = self.create_subscription(
             msg_class, topic, lambda data, info, t=topic: self._on_message(t, data, info),
-            adapted_qos(offers, self._queue_depth), raw=True,
+            # Durable event topics hand over their history in a burst when we match
+            # late: the reader keeps as deep a queue as for volatile topics.
+            adapted_qos(offers, self._queue_depth, latched_depth=self._queue_depth), raw=True,
         )
         self.get_logger().info(f"recording {topic} [{type_name}]")
 

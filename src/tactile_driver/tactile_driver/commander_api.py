@@ -127,17 +127,18 @@ class ArmCommander:
         self.tip_xyz: Optional[np.ndarray] = None
         self.odometer_m = 0.0  # tip path length over all measured states
         self.approach_origin_xyz: Optional[np.ndarray] = None
+        self.back_off_xyz: Optional[np.ndarray] = None
         self._task: Optional[_Task] = None
         self._dry_q: Optional[np.ndarray] = None  # dry run: end of the last plan (the arm "is" there)
         self._last: Optional[_Task] = None
         self.counters = {"invalid_joint_states": 0, "invalid_contacts": 0, "stops": 0, "rejected": 0}
         self._on_state = on_state
-        self._pub_traj = node.create_publisher(JointTrajectory, c.trajectory_topic, qos.EVENTS)
+        self._pub_traj = node.create_publisher(JointTrajectory, c.trajectory_topic, qos.COMMANDS)
         self._pub_planned = node.create_publisher(JointTrajectory, c.planned_topic, qos.EVENTS)
         self._pub_pose = node.create_publisher(
             arm_msgs.PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR) if c.publish_fingertip_pose else None
         node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state, qos.SENSOR)
-        node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.EVENTS)
+        node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.OBSERVATIONS)
         node.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.LATCHED)
         node.create_timer(c.control_period_s, self._update, clock=self._steady)
 
@@ -180,6 +181,7 @@ class ArmCommander:
         target = back_off_target(contact_xyz, self._plan_start()[1], self.cfg.tip_radius_m + clearance_m)
         if target is None or not clearance_m >= 0:
             return self._reject("back_off", "needs a finite contact point away from the tip centre and clearance >= 0")
+        self.back_off_xyz = target  # the nominal end of the move (the touch cycle reports it)
         return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
 
     def stop(self) -> None:

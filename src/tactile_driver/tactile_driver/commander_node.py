@@ -10,8 +10,10 @@ Out: /joint_trajectory_controller/joint_trajectory (JointTrajectory),
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.clock import Clock, ClockType
@@ -21,11 +23,16 @@ from sensor_msgs.msg import PointCloud2
 from tactile_common import fields, qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
+from tactile_common.cycle import TouchReport
+from tactile_common.cycle_msgs import report_msg
 from tactile_common.pointcloud import to_pointcloud2
+from tactile_common.stamps import stamp_ns, time_from_ns
 from tactile_driver import arm_msgs
 from tactile_driver.commander_api import ArmCommander, CommanderConfig
+from tactile_driver.goal_inbox import GoalInbox, Verdict
 from tactile_driver.kinematics import KinematicsError
-from tactile_driver.touch_executor import OUTCOME_ABORTED, OUTCOME_UNREACHABLE, TouchExecutor, TouchReport, TouchRequest
+from tactile_driver.startup_move import StartupMove
+from tactile_driver.touch_executor import OUTCOME_UNREACHABLE, TouchExecutor, TouchRequest
 
 _D = CommanderConfig()
 START_ATTEMPTS = 3  # moves to the start position that may end for stalled joint states
@@ -68,8 +75,11 @@ PARAMS = {
 
 
 class ArmCommanderNode(Node):
+    """Wiring: goal + path -> GoalInbox -> TouchExecutor (ArmCommander verbs) -> touch_done."""
+
     def __init__(self) -> None:
         super().__init__("arm_commander")
+        started_ns = time.time_ns()  # wall clock, as the DDS source timestamps of the goals
         p = declare_parameters(self, PARAMS)
         cfg = CommanderConfig(**{k: v for k, v in vars(p).items() if k in CommanderConfig.__dataclass_fields__})
         try:
@@ -79,20 +89,15 @@ class ArmCommanderNode(Node):
         self.touches = TouchExecutor(self.arm, p.standoff_m + p.tip_radius_m + p.max_depth_m, p.dwell_s,
                                      self._publish_free_space, self._publish_done,
                                      back_off_clearance_m=p.standoff_m)
-        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
-        self._pub_done = self.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
-        self._goals: dict[int, PoseStamped] = {}
-        self._paths: dict[int, Path] = {}
+        self.inbox = GoalInbox(started_ns)
+        self.startup = StartupMove(self.arm, p.start_tip_xyz_m, p.start_clearance_z_m, START_ATTEMPTS,
+                                   self.get_logger()) if p.move_to_start else None
+        self.touches.hold = p.move_to_start  # touches wait until the tip is at the start position
         self.invalid_goals = 0
+        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
+        self._pub_done = self.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
         self.create_subscription(PoseStamped, topics.GOAL, self._on_goal, qos.EVENTS)
         self.create_subscription(Path, topics.PATH, self._on_path, qos.EVENTS)
-        self._start_xyz = np.asarray(p.start_tip_xyz_m, dtype=float)
-        if p.move_to_start and self._start_xyz.shape != (3,):
-            raise ValueError(f"start_tip_xyz_m needs 3 values, got {list(p.start_tip_xyz_m)}")
-        self._clearance_z_m = p.start_clearance_z_m
-        self._start_state = "pending" if p.move_to_start else "done"
-        self._start_attempts = 0
-        self.touches.hold = p.move_to_start  # touches wait until the tip is at the start position
         self.create_timer(cfg.control_period_s, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(
             f"arm_commander ready: {self.arm.model.nq} joints, tip {cfg.tip_offset_m} m from {cfg.flange_frame}, "
@@ -100,92 +105,51 @@ class ArmCommanderNode(Node):
         )
 
     def _tick(self) -> None:
-        if self._start_state != "done":
-            self._move_to_start()
+        if self.startup is not None and not self.startup.done:
+            self.startup.update()
+            self.touches.hold = not self.startup.done  # queued touches go ahead, wherever the tip ended
         self.touches.update()
 
-    def _move_to_start(self) -> None:
-        """Once: up to the clearance height, across, and down to the start position.
-
-        A move that ends because the joint states stalled (a loaded machine, a
-        controller restart) is planned again from where the arm stopped, up to
-        START_ATTEMPTS times; any other failure (unreachable, contact, e-stop) is final.
-        """
-        arm = self.arm
-        if self._start_state == "pending":
-            if (arm.tip_xyz is None and not arm.cfg.dry_run) or arm.estop.engaged or arm.watchdog_stale():
-                return  # wait for joint states / e-stop release
-            here = arm.tip_xyz if arm.tip_xyz is not None else arm.model.fk(arm.home)[0]
-            z = max(here[2], self._clearance_z_m, self._start_xyz[2])
-            path = np.array([[here[0], here[1], z], [self._start_xyz[0], self._start_xyz[1], z], self._start_xyz])
-            self._start_attempts += 1
-            if arm.follow_path(path):
-                self._start_state = "moving"
-            else:
-                self._start_failed("cannot move to the start position")
-        elif self._start_state == "moving" and arm.is_task_complete():
-            if arm.get_result().name == "SUCCEEDED":
-                self.get_logger().info(f"tip at the start position {self._start_xyz.tolist()}")
-                self._start_state = "done"
-            else:
-                self._start_failed("move to the start position ended")
-        if self._start_state == "done":
-            self.touches.hold = False  # queued touches go ahead, wherever the tip ended
-
-    def _start_failed(self, what: str) -> None:
-        task = self.arm.last_task
-        if task.joint_states_lost and self._start_attempts < START_ATTEMPTS:
-            self.get_logger().warning(f"{what}: {task.reason}; trying again when joint states flow "
-                                      f"(attempt {self._start_attempts + 1}/{START_ATTEMPTS})")
-            self._start_state = "pending"
-        else:
-            self.get_logger().error(f"{what}: {task.reason}")
-            self._start_state = "done"
-
-    def _on_goal(self, msg: PoseStamped) -> None:
-        self._goals[arm_msgs.stamp_ns(msg.header.stamp)] = msg
-        self._pair(arm_msgs.stamp_ns(msg.header.stamp))
+    def _on_goal(self, msg: PoseStamped, info: dict) -> None:  # info: rclpy's message info (send time)
+        sent_ns = int(info.get("source_timestamp") or time.time_ns())
+        self._handle(self.inbox.add_goal(stamp_ns(msg.header.stamp), msg, sent_ns))
 
     def _on_path(self, msg: Path) -> None:
-        self._paths[arm_msgs.stamp_ns(msg.header.stamp)] = msg
-        self._pair(arm_msgs.stamp_ns(msg.header.stamp))
+        self._handle(self.inbox.add_path(stamp_ns(msg.header.stamp), msg))
 
-    def _pair(self, stamp_ns: int) -> None:
-        """A goal and its path (same header.stamp) make one touch request."""
-        if stamp_ns not in self._goals or stamp_ns not in self._paths:
+    def _handle(self, decision) -> None:
+        if decision is None:
             return
-        goal, path = self._goals.pop(stamp_ns), self._paths.pop(stamp_ns)
-        for old in [s for s in self._goals if s < stamp_ns]:
-            self._goals.pop(old)
-        for old in [s for s in self._paths if s < stamp_ns]:
-            self._paths.pop(old)
+        if decision.verdict is Verdict.RESEND_REPORT:
+            self.get_logger().info(f"goal {decision.stamp_ns} again: {decision.reason}")
+            self._pub_done.publish(report_msg(decision.report))
+            return
+        if decision.verdict is Verdict.IGNORE:
+            self.get_logger().info(f"goal {decision.stamp_ns} ignored: {decision.reason}")
+            return
         try:
-            position, rotation = arm_msgs.pose_arrays(goal.pose)
-            path_xyz = arm_msgs.path_xyz(path)
+            position, rotation = arm_msgs.pose_arrays(decision.goal.pose)
+            path_xyz = arm_msgs.path_xyz(decision.path)
             if not (np.all(np.isfinite(position)) and np.all(np.isfinite(path_xyz))):
                 raise ValueError("goal or path is not finite")
         except ValueError as exc:
             self.invalid_goals += 1
-            self.get_logger().error(f"invalid goal {stamp_ns}: {exc}")
-            return self._publish_done(TouchReport(stamp_ns, OUTCOME_UNREACHABLE, str(exc), None, 0.0, 0.0))
-        self.touches.submit(TouchRequest(stamp_ns, position, rotation[:, 0], path_xyz))
+            self.get_logger().error(f"invalid goal {decision.stamp_ns}: {exc}")
+            return self._publish_done(TouchReport(decision.stamp_ns, OUTCOME_UNREACHABLE, str(exc), None, 0.0, 0.0))
+        self.touches.submit(TouchRequest(decision.stamp_ns, position, rotation[:, 0], path_xyz))
 
-    def _publish_free_space(self, tip_xyz: np.ndarray, stamp_ns: int) -> None:
+    def _publish_free_space(self, tip_xyz: np.ndarray, observation_stamp_ns: int) -> None:
         point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
         point["x"], point["y"], point["z"] = tip_xyz
         point["label"] = fields.LABEL_FREE_SPACE
-        stamp = arm_msgs.Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
-        self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, stamp))
+        self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, time_from_ns(observation_stamp_ns)))
 
     def _publish_done(self, report: TouchReport) -> None:
-        level = {OUTCOME_UNREACHABLE: DiagnosticStatus.WARN, OUTCOME_ABORTED: DiagnosticStatus.ERROR}
-        msg = DiagnosticStatus(level=level.get(report.outcome, DiagnosticStatus.OK), name="touch",
-                               message=report.outcome, hardware_id="arm")
-        msg.values = [KeyValue(key=k, value=v) for k, v in report.values().items()]
-        self._pub_done.publish(msg)
-        text = (f"touch {report.goal_stamp_ns}: {report.outcome} {report.reason} "
+        self.inbox.finished(report)
+        self._pub_done.publish(report_msg(report))
+        text = (f"touch {report.goal_stamp_ns}: {report.outcome.value} {report.reason} "
                 f"(travel {report.travel_m:.3f} m, {report.duration_s:.2f} s)")
-        if report.outcome in ("contact", "free_space"):  # rclpy: one severity per call site
+        if report.outcome.observed:  # rclpy: one severity per call site
             self.get_logger().info(text)
         else:
             self.get_logger().warning(text)

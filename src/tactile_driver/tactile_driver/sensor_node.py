@@ -80,7 +80,7 @@ class TactileSensorNode(Node):
         self._connects_seen = 0
         self._rate_frames, self._rate_t = 0, time.monotonic()
         self._last_counts: dict = {}
-        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.EVENTS)
+        self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
         self._pub_taxels = self.create_publisher(Float32MultiArray, topics.TAXELS, qos.SENSOR)
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)

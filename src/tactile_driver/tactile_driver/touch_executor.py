@@ -24,14 +24,15 @@ from typing import Callable, Optional
 import numpy as np
 
 from tactile_common import fields
+from tactile_common.cycle import TouchOutcome, TouchReport
 from tactile_driver.commander_api import ArmCommander, TaskResult
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError
 
-OUTCOME_CONTACT = "contact"
-OUTCOME_FREE_SPACE = "free_space"
-OUTCOME_UNREACHABLE = "unreachable"
-OUTCOME_ABORTED = "aborted"
+OUTCOME_CONTACT = TouchOutcome.CONTACT
+OUTCOME_FREE_SPACE = TouchOutcome.FREE_SPACE
+OUTCOME_UNREACHABLE = TouchOutcome.UNREACHABLE
+OUTCOME_ABORTED = TouchOutcome.ABORTED
 
 
 @dataclass
@@ -40,25 +41,6 @@ class TouchRequest:
     pre_touch_xyz: np.ndarray  # world, m
     approach_dir: np.ndarray  # unit, world (the goal's x-axis)
     path_xyz: np.ndarray  # (K, 3) world, m
-
-
-@dataclass
-class TouchReport:
-    goal_stamp_ns: int
-    outcome: str
-    reason: str
-    observation_stamp_ns: Optional[int]
-    travel_m: float
-    duration_s: float
-
-    def values(self) -> dict:
-        return {
-            "goal_stamp_ns": str(self.goal_stamp_ns),
-            "observation_stamp_ns": "" if self.observation_stamp_ns is None else str(self.observation_stamp_ns),
-            "travel_m": f"{self.travel_m:.6f}",
-            "duration_s": f"{self.duration_s:.6f}",
-            "reason": self.reason,
-        }
 
 
 class TouchExecutor:
@@ -86,6 +68,7 @@ class TouchExecutor:
         self._reason = ""
         self._obs_stamp_ns: Optional[int] = None
         self._travel_planned_m = 0.0
+        self._end_xyz: Optional[np.ndarray] = None
 
     @property
     def busy(self) -> bool:
@@ -140,11 +123,15 @@ class TouchExecutor:
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"retract: {task.reason}")
             self._travel_planned_m += task.traj.length_m
+            # Nominal end: the pre-touch point after a retract, the back-off point after a path contact
+            # (the next touch is planned from there, offline as on the graph).
+            self._end_xyz = self._req.pre_touch_xyz if self._end_xyz is None else self._end_xyz
             self._done(self._outcome, "dry_run: planned, not executed" if arm.cfg.dry_run else self._reason)
 
     def _begin(self, req: TouchRequest) -> None:
         self._req, self._t0_s, self._odo0_m = req, self.arm.now_s(), self.arm.odometer_m
         self._obs_stamp_ns, self._outcome, self._reason, self._travel_planned_m = None, "", "", 0.0
+        self._end_xyz = None
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
         try:  # plan the whole touch before moving
             to_goal = self.arm.plan(path)
@@ -164,12 +151,14 @@ class TouchExecutor:
         contact_xyz = fields.xyz(np.atleast_1d(task.contact))[0]
         if not self.arm.back_off(contact_xyz, self.back_off_clearance_m):
             return self._done(OUTCOME_ABORTED, f"path: {task.reason}; back_off: {self.arm.last_task.reason}")
+        self._end_xyz = np.asarray(self.arm.back_off_xyz, dtype=float)
         self._state = "retract"
 
     def _done(self, outcome: str, reason: str) -> None:
         req = self._req
         travel = self._travel_planned_m if self.arm.cfg.dry_run else self.arm.odometer_m - self._odo0_m
+        end = None if outcome == OUTCOME_ABORTED or self._end_xyz is None else tuple(map(float, self._end_xyz))
         report = TouchReport(req.goal_stamp_ns, outcome, reason, self._obs_stamp_ns,
-                             0.0 if outcome == OUTCOME_UNREACHABLE else travel, self.arm.now_s() - self._t0_s)
+                             0.0 if outcome == OUTCOME_UNREACHABLE else travel, self.arm.now_s() - self._t0_s, end)
         self._req, self._state = None, "idle"
         self._publish_done(report)

@@ -6,6 +6,11 @@ Publishes   /gpis/variance_map (PointCloud2, VARIANCE_MAP_DTYPE, MAP latched)
 Service     ~/reset (std_srvs/Trigger)
 Parameters  tactile_gpis.estimator.PARAMETERS (config/gpis_estimator.yaml)
 
+Contacts arrive on a durable topic (qos.OBSERVATIONS): a restarted estimator
+is handed every observation so far by the driver and the commander, and
+rebuilds the estimate from them; an observation seen twice (same stamp,
+label and point) is added once.
+
 One map per contacts message (accepted or rejected), stamped with the newest
 header.stamp received so far (map stamps never go back: a contact that arrives
 after a newer observation, from a slower publisher, still yields a map at least
@@ -40,13 +45,15 @@ class GpisEstimatorNode(Node):
         self.frame_id = str(values["frame_id"])
         self.n_received = 0
         self.n_rejected = 0
+        self.n_duplicates = 0
+        self._seen: set[tuple] = set()  # (stamp ns, label, x, y, z) of every observation added
         self.stamp = Time()
         self.map_pub = self.create_publisher(PointCloud2, topics.VARIANCE_MAP, qos.MAP)
         self.surface_pub = self.create_publisher(Marker, topics.SURFACE, qos.MAP)
         self.occupancy_pub = (
             self.create_publisher(OccupancyGrid, topics.OCCUPANCY, qos.MAP) if self.estimator.dim == 2 else None
         )
-        self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.EVENTS)
+        self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.OBSERVATIONS)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.publish_estimate()
         self.get_logger().info(
@@ -73,14 +80,22 @@ class GpisEstimatorNode(Node):
             return [(False, f"bad cloud: {exc}")]
         if len(pts) == 0:
             return [(False, "empty cloud")]
-        return [
-            self.estimator.add_observation(p, n, int(label))
-            for p, n, label in zip(xyz(pts), normals(pts), pts["label"])
-        ]
+        results = []
+        for p, n, label in zip(xyz(pts), normals(pts), pts["label"]):
+            key = (stamp_ns(msg.header.stamp), int(label), *map(float, p))
+            if key in self._seen:
+                self.n_duplicates += 1
+                continue
+            ok, reason = self.estimator.add_observation(p, n, int(label))
+            if ok:
+                self._seen.add(key)
+            results.append((ok, reason))
+        return results
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         n = self.estimator.n_observations
         self.estimator.reset()
+        self._seen.clear()
         self.publish_estimate()
         response.success = True
         response.message = f"estimate reset ({n} observations dropped)"

@@ -1,18 +1,25 @@
 """soc_planner node: variance map + fingertip pose + request → goal pose, path, status.
 
 Wiring: /gpis/variance_map (MAP), /arm/fingertip_pose (SENSOR), /planner/request
-(std_msgs/Header: plan on a map with stamp ≥ request stamp, waiting for it if
-needed), /arm/touch_done ('unreachable' → exclude that goal's target) →
+(diagnostic_msgs/DiagnosticStatus: request id + the map stamp to wait for),
+/arm/touch_done ('unreachable' → exclude that goal's target) →
 TouchPlanner.plan → /planner/goal (PoseStamped, x-axis = −normal),
-/planner/path (nav_msgs/Path, same stamp), /planner/status (every decision).
+/planner/path (nav_msgs/Path), /planner/status (the answer to every request).
+
+Delivery (docs/architecture.md): goal and path are stamped with the request
+id they answer. A request seen again (re-sent, or handed over by the durable
+topic after a restart) gets its stored answer again, unchanged; of the
+requests waiting for a map only the newest is answered (older ones are
+superseded).
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from typing import Optional
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rclpy.node import Node
@@ -20,16 +27,19 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Header
 
 from tactile_common import qos, topics
+from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome
+from tactile_common.cycle_msgs import answer_msg, report_from_msg, request_from_msg
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
-from tactile_common.stamps import stamp_ns
+from tactile_common.stamps import stamp_ns, time_from_ns
 
 from .planner import NODE_PARAMETERS, PARAMETERS, PlanResult, TouchPlanner
 from .pose import approach_rotation, quaternion_xyzw
 
 REQUEST = "/planner/request"
 STATUS = "/planner/status"
+KEEP_ANSWERS = 200  # answered requests kept for re-sending
 
 
 class SocPlannerNode(Node):
@@ -44,16 +54,18 @@ class SocPlannerNode(Node):
         self.map: Optional[np.ndarray] = None
         self.map_stamp_ns = -1
         self.tip: Optional[np.ndarray] = None
-        self.request: Optional[tuple[int, int]] = None  # (request stamp ns, received at clock ns)
+        self.request: Optional[tuple[PlanRequest, int]] = None  # (pending request, received at clock ns)
+        self.newest_request_id = -1
+        self.answers: OrderedDict[int, tuple] = OrderedDict()  # request id -> (goal, path, status) messages
         self.goal_targets: dict[int, np.ndarray] = {}
-        self.excluded: list[np.ndarray] = []
+        self.excluded: dict[int, np.ndarray] = {}  # goal stamp -> target reported unreachable
         self.invalid_inputs = 0
         self.pub_goal = self.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
         self.pub_path = self.create_publisher(Path, topics.PATH, qos.EVENTS)
         self.pub_status = self.create_publisher(DiagnosticStatus, STATUS, qos.EVENTS)
         self.create_subscription(PointCloud2, topics.VARIANCE_MAP, self.on_map, qos.MAP)
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self.on_tip, qos.SENSOR)
-        self.create_subscription(Header, REQUEST, self.on_request, qos.EVENTS)
+        self.create_subscription(DiagnosticStatus, REQUEST, self.on_request, qos.EVENTS)
         self.create_subscription(DiagnosticStatus, topics.TOUCH_DONE, self.on_touch_done, qos.EVENTS)
         self.create_timer(0.5, self.check_timeout)
         self.get_logger().info(
@@ -80,53 +92,82 @@ class SocPlannerNode(Node):
         self.tip = tip
         self.try_plan()
 
-    def on_request(self, msg: Header) -> None:
-        self.request = (stamp_ns(msg.stamp), self.get_clock().now().nanoseconds)
+    def on_request(self, msg: DiagnosticStatus) -> None:
+        try:
+            req = request_from_msg(msg)
+        except ValueError as exc:
+            self.invalid_inputs += 1
+            self.get_logger().warn(f"invalid plan request ignored: {exc}")
+            return
+        if req.request_id in self.answers:  # seen before: the same answer again
+            for pub, answer in zip((self.pub_goal, self.pub_path, self.pub_status), self.answers[req.request_id]):
+                if answer is not None:
+                    pub.publish(answer)
+            return
+        if req.request_id < self.newest_request_id:
+            return  # superseded by a newer request
+        self.newest_request_id = req.request_id
+        self.request = (req, self.get_clock().now().nanoseconds)
         self.try_plan()
 
     def on_touch_done(self, msg: DiagnosticStatus) -> None:
-        if msg.message != "unreachable":
-            return
-        values = {kv.key: kv.value for kv in msg.values}
         try:
-            target = self.goal_targets[int(values.get("goal_stamp_ns", ""))]
-        except (ValueError, KeyError):
-            self.get_logger().warn(f"'unreachable' for an unknown goal stamp {values.get('goal_stamp_ns')!r}")
+            report = report_from_msg(msg)
+        except ValueError as exc:
+            self.invalid_inputs += 1
+            self.get_logger().warn(f"invalid touch_done ignored: {exc}")
             return
-        self.excluded.append(target)
+        if report.outcome is not TouchOutcome.UNREACHABLE or report.goal_stamp_ns in self.excluded:
+            return
+        target = self.goal_targets.get(report.goal_stamp_ns)
+        if target is None:
+            self.get_logger().warn(f"'unreachable' for an unknown goal stamp {report.goal_stamp_ns}")
+            return
+        self.excluded[report.goal_stamp_ns] = target
         self.get_logger().info(f"excluding candidates near {np.round(target, 3).tolist()} (reported unreachable)")
 
     # -- decision ---------------------------------------------------------
     def try_plan(self) -> None:
-        if self.request is None or self.map is None or self.tip is None:
+        if self.request is None or self.map is None:
             return
-        if self.map_stamp_ns < self.request[0]:
+        req = self.request[0]
+        # From the touch's nominal start when the request names it (the offline loop's rule), else measured.
+        start = np.asarray(req.start_xyz_m, dtype=float) if req.start_xyz_m is not None else self.tip
+        if start is None or self.map_stamp_ns < req.min_map_stamp_ns:
             return
         self.request = None
-        ex = np.array(self.excluded).reshape(-1, 3)
-        res = self.planner.plan(self.map, self.tip, ex)
-        stamp = self.get_clock().now().to_msg()
+        ex = np.array(list(self.excluded.values())).reshape(-1, 3)
+        res = self.planner.plan(self.map, start, ex)
+        stamp = time_from_ns(req.request_id)  # the goal's id: the request it answers
+        goal = path = None
         if res.ok:
-            self.goal_targets[stamp_ns(stamp)] = res.target_xyz.copy()
-            self.pub_goal.publish(self.goal_msg(res, stamp))
-            self.pub_path.publish(self.path_msg(res, stamp))
-            self.get_logger().info(f"goal: {res.message} ({res.decision_ms:.1f} ms)")
+            self.goal_targets[req.request_id] = res.target_xyz.copy()
+            goal, path = self.goal_msg(res, stamp), self.path_msg(res, stamp)
+            self.pub_goal.publish(goal)
+            self.pub_path.publish(path)
+            self.get_logger().info(f"goal {req.request_id}: {res.message} ({res.decision_ms:.1f} ms)")
         else:
-            self.get_logger().warn(f"no goal: {res.status}: {res.message}")
-        self.pub_status.publish(self.status_msg(res.status, res.message, stamp, res))
+            self.get_logger().warn(f"no goal for request {req.request_id}: {res.status}: {res.message}")
+        status = self.status_msg(req.request_id, res.status, res.message, res)
+        self.pub_status.publish(status)
+        self.answers[req.request_id] = (goal, path, status)
+        while len(self.answers) > KEEP_ANSWERS:
+            self.answers.popitem(last=False)
 
     def check_timeout(self) -> None:
         if self.request is None:
             return
-        waited_s = (self.get_clock().now().nanoseconds - self.request[1]) * 1e-9
+        req, received_ns = self.request
+        waited_s = (self.get_clock().now().nanoseconds - received_ns) * 1e-9
         if waited_s > self.timeout_s:
-            missing = "a map at least as new as the request" if self.map_stamp_ns < self.request[0] else "a fingertip pose"
+            missing = "a map at least as new as the request" if self.map_stamp_ns < req.min_map_stamp_ns \
+                else "a fingertip pose"
             if self.map is None:
                 missing = "a variance map"
-            self.request = None
+            self.request = None  # not stored: the explorer's re-sent request is tried again
             msg = f"no goal after {waited_s:.0f} s: still waiting for {missing}"
             self.get_logger().warn(msg)
-            self.pub_status.publish(self.status_msg("timeout", msg, self.get_clock().now().to_msg(), None))
+            self.pub_status.publish(self.status_msg(req.request_id, "timeout", msg, None))
 
     # -- messages ---------------------------------------------------------
     def header(self, stamp) -> Header:
@@ -150,17 +191,16 @@ class SocPlannerNode(Node):
             path.poses.append(ps)
         return path
 
-    def status_msg(self, status: str, message: str, stamp, res: Optional[PlanResult]) -> DiagnosticStatus:
-        values = [KeyValue(key="detail", value=message), KeyValue(key="stamp_ns", value=str(stamp_ns(stamp))),
-                  KeyValue(key="invalid_inputs", value=str(self.invalid_inputs))]
+    def status_msg(self, request_id: int, status: str, message: str,
+                   res: Optional[PlanResult]) -> DiagnosticStatus:
+        extra = {"invalid_inputs": str(self.invalid_inputs)}
         if res is not None:
-            values += [KeyValue(key=k, value=str(v)) for k, v in (
-                ("index", res.index), ("decision_ms", f"{res.decision_ms:.2f}"),
-                ("start_snapped", res.start_snapped), ("n_candidates", res.n_candidates),
-                ("n_unreachable", res.n_unreachable), ("n_excluded", res.n_excluded))]
-        level = DiagnosticStatus.OK if status == "ok" else DiagnosticStatus.WARN
-        return DiagnosticStatus(level=level, name="soc_planner", message=status,
-                                hardware_id="soc_planner", values=values)
+            extra.update({k: str(v) for k, v in (
+                ("index", res.index), ("start_snapped", res.start_snapped), ("n_candidates", res.n_candidates),
+                ("n_unreachable", res.n_unreachable), ("n_excluded", res.n_excluded))})
+        goal_ns = request_id if res is not None and res.ok else 0
+        return answer_msg(PlannerAnswer(request_id, status, message, goal_ns,
+                                        res.decision_ms if res is not None else float("nan"), extra))
 
 
 def main(args=None) -> int:

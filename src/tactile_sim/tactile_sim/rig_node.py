@@ -63,7 +63,7 @@ class SimRig(Node):
         self.device = self._make_device(p) if p.sensor_enabled else None
         self._pub_clock = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
         self._pub_js = self.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
-        self.create_subscription(JointTrajectory, p.trajectory_topic, self._on_trajectory, qos.EVENTS)
+        self.create_subscription(JointTrajectory, p.trajectory_topic, self._on_trajectory, qos.COMMANDS)
         # The rig is the clock source: it ticks on the steady clock, whatever use_sim_time says.
         self.create_timer(self.dt_s / p.real_time_factor, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         tip = self.model.fk(q0)[0]

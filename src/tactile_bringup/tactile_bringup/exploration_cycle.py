@@ -1,0 +1,236 @@
+"""The explorer's side of the touch cycle, ROS-free, with an injected clock.
+
+    WAITING_FOR_START --tip at start--> PLANNING(request) --answer ok--> TOUCHING(goal)
+    TOUCHING --report + observation--> record --> PLANNING(next) | FINISHED
+
+Delivery (docs/architecture.md, "Delivery"): events can arrive late, twice or
+(if a node died) never. Every request has an id (:class:`PlanRequest`); the
+planner's answer and the commander's report name it (the goal stamp is the
+request id), so answers and reports of other requests are ignored. Nothing
+is waited for forever:
+
+- no answer within ``answer_timeout_s``: the same request is sent again (the
+  planner answers a request it has answered before with the same answer);
+- the planner answers ``timeout`` (no map new enough yet, e.g. the estimator
+  is restarting): the same request again;
+- no report of the touch within ``touch_timeout_s``, an ``aborted`` touch, or
+  a report whose observation does not arrive within
+  ``observation_timeout_s``: the touch is re-issued under a new id (a
+  restarted commander ignores goals older than itself);
+- ``unreachable``: a new request (the planner excludes that target);
+- more than ``max_retries`` of these in a row, ``max_unreachable``
+  unreachable goals in a row, or a planner that has no goal: the run ends,
+  with the reason in one line.
+
+Times are seconds of the injected ``clock_s`` (the node passes a steady
+clock: time-outs must fire even when a simulated clock stops).
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, TouchReport
+
+
+class Phase(enum.Enum):
+    WAITING_FOR_START = "waiting_for_start"
+    PLANNING = "planning"
+    TOUCHING = "touching"
+    FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class CycleConfig:
+    start_tolerance_m: float = 0.003  # the tip counts as at the start position within this distance
+    start_timeout_s: float = 120.0  # give up if the tip does not reach the start position
+    answer_timeout_s: float = 15.0  # no answer to a request: send it again
+    touch_timeout_s: float = 60.0  # no end of a touch: re-issue it
+    observation_timeout_s: float = 10.0  # a report whose observation does not arrive: re-issue
+    max_retries: int = 3  # re-sends / re-issues in a row before the run ends
+    max_unreachable: int = 10  # unreachable goals in a row before the run ends
+
+
+class ExplorationCycle:
+    """Sequences the touches of one run; the node feeds it events and calls :meth:`tick`.
+
+    ``run`` keeps the records (:class:`tactile_bringup.progress.RunRecorder`:
+    ``add_touch``, ``add_travel``, ``stop_reason``, ``progress_line``,
+    ``write``); ``send_request`` publishes a :class:`PlanRequest`;
+    ``next_id`` gives a candidate request id (ns; made strictly increasing here).
+    """
+
+    def __init__(self, cfg: CycleConfig, start_xyz_m: np.ndarray, run: Any,
+                 send_request: Callable[[PlanRequest], None], clock_s: Callable[[], float],
+                 next_id: Callable[[], int], log: Any = None) -> None:
+        self.cfg = cfg
+        self.start_xyz_m = np.asarray(start_xyz_m, dtype=float)
+        self.run = run
+        self._send = send_request
+        self._clock_s = clock_s
+        self._next_id = next_id
+        self.log = log if log is not None else logging.getLogger("exploration_cycle")
+        self.phase = Phase.WAITING_FOR_START
+        self.reason = ""
+        self.exit_status = 0
+        self.last_tip_xyz: Optional[np.ndarray] = None
+        self.request: Optional[PlanRequest] = None
+        self.goal_stamp_ns: Optional[int] = None
+        self.report: Optional[TouchReport] = None  # of the current goal, waiting for its observation
+        self.last_obs_stamp_ns = 0
+        self.plan_from_xyz: Optional[tuple] = tuple(map(float, self.start_xyz_m))  # nominal start of the next touch
+        self.retries = 0
+        self.unreachable_in_row = 0
+        self.n_requests_sent = 0
+        self.written: list[str] = []  # what run.write produced when the run ended
+        self._last_id = -1
+        self._t_phase = clock_s()
+        self._t_sent = self._t_phase
+        self._goals: dict[int, Any] = {}
+        self._decision_ms: dict[int, float] = {}
+        self._observations: dict[int, np.ndarray] = {}
+
+    @property
+    def finished(self) -> bool:
+        return self.phase is Phase.FINISHED
+
+    # -- events -----------------------------------------------------------------
+    def on_tip(self, tip_xyz_m: np.ndarray) -> None:
+        if self.phase is not Phase.WAITING_FOR_START:
+            return
+        self.last_tip_xyz = np.asarray(tip_xyz_m, dtype=float)
+        if np.linalg.norm(self.last_tip_xyz - self.start_xyz_m) <= self.cfg.start_tolerance_m:
+            self.log.info("tip at the start position: first decision")
+            self._new_request(0)
+
+    def on_answer(self, answer: PlannerAnswer) -> None:
+        if self.phase is not Phase.PLANNING or self.request is None or answer.request_id != self.request.request_id:
+            return  # an answer to another (older, re-sent) request
+        if answer.ok:
+            self.goal_stamp_ns = answer.goal_stamp_ns
+            self._decision_ms[answer.goal_stamp_ns] = answer.decision_ms
+            self._enter(Phase.TOUCHING)
+        elif answer.status == "timeout":  # the planner waited for a map in vain: ask again
+            self._retry(f"planner: {answer.detail}", resend=True)
+        else:
+            self._finish(f"planner: {answer.status}: {answer.detail}")
+
+    def on_goal(self, stamp_ns: int, goal: Any) -> None:
+        self._goals[int(stamp_ns)] = goal
+
+    def on_observation(self, stamp_ns: int, point: np.ndarray) -> None:
+        self._observations[int(stamp_ns)] = point
+        if self.report is not None:
+            self._complete()
+
+    def on_report(self, report: TouchReport) -> None:
+        if self.phase is not Phase.TOUCHING or report.goal_stamp_ns != self.goal_stamp_ns or self.report is not None:
+            return  # another goal's report, or this one's again
+        if report.outcome is TouchOutcome.UNREACHABLE:
+            self.unreachable_in_row += 1
+            self.run.add_travel(report.travel_m, report.duration_s)
+            self.log.warning(f"goal unreachable ({self.unreachable_in_row} in a row): re-planning")
+            if self.unreachable_in_row >= self.cfg.max_unreachable:
+                self._finish(f"{self.unreachable_in_row} unreachable goals in a row")
+            else:
+                self._new_request(self.last_obs_stamp_ns)
+            return
+        if report.outcome is TouchOutcome.ABORTED:
+            self.run.add_travel(report.travel_m, report.duration_s)
+            self.plan_from_xyz = None  # the arm stopped somewhere: plan from its measured pose
+            self._retry(f"touch aborted: {report.reason}", resend=False)
+            return
+        self.report = report
+        self.plan_from_xyz = report.end_xyz_m
+        self._t_phase = self._clock_s()  # now waiting for the observation
+        self._complete()
+
+    def tick(self) -> None:
+        """Time-outs; call periodically."""
+        waited = self._clock_s() - self._t_phase
+        if self.phase is Phase.WAITING_FOR_START and waited > self.cfg.start_timeout_s:
+            self._finish(self._start_failure(), exit_status=1)
+        elif self.phase is Phase.PLANNING and self._clock_s() - self._t_sent > self.cfg.answer_timeout_s:
+            self._retry(f"no answer to request {self.request.request_id} within {self.cfg.answer_timeout_s:.0f} s",
+                        resend=True)
+        elif self.phase is Phase.TOUCHING and self.report is None and waited > self.cfg.touch_timeout_s:
+            self.plan_from_xyz = None  # where the arm is, nobody said
+            self._retry(f"touch {self.goal_stamp_ns} did not end within {self.cfg.touch_timeout_s:.0f} s",
+                        resend=False)
+        elif self.phase is Phase.TOUCHING and self.report is not None and waited > self.cfg.observation_timeout_s:
+            self._retry(f"the observation {self.report.observation_stamp_ns} of touch {self.goal_stamp_ns} "
+                        f"did not arrive within {self.cfg.observation_timeout_s:.0f} s", resend=False)
+
+    def interrupt(self, reason: str = "interrupted") -> None:
+        """Ctrl-C: keep what was measured."""
+        self._finish(reason)
+
+    # -- internals --------------------------------------------------------------
+    def _complete(self) -> None:
+        report = self.report
+        obs_ns = report.observation_stamp_ns
+        if obs_ns is None or obs_ns not in self._observations:
+            return  # still on its way: tick() bounds the wait
+        self.report = None
+        self.retries = self.unreachable_in_row = 0
+        record = self.run.add_touch(goal=self._goals.pop(report.goal_stamp_ns, None),
+                                    observation=self._observations.pop(obs_ns), travel_m=report.travel_m,
+                                    time_s=report.duration_s,
+                                    decision_ms=self._decision_ms.pop(report.goal_stamp_ns, float("nan")))
+        self.log.info(self.run.progress_line(record))
+        self.last_obs_stamp_ns = obs_ns
+        reason = self.run.stop_reason()
+        if reason:
+            self._finish(reason)
+        else:
+            self._new_request(obs_ns)
+
+    def _new_request(self, min_map_stamp_ns: int) -> None:
+        request_id = max(int(self._next_id()), self._last_id + 1)
+        self._last_id = request_id
+        self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz)
+        self.goal_stamp_ns, self.report = None, None
+        self._enter(Phase.PLANNING)
+        self._publish()
+
+    def _publish(self) -> None:
+        self._t_sent = self._clock_s()
+        self.n_requests_sent += 1
+        self._send(self.request)
+
+    def _retry(self, why: str, resend: bool) -> None:
+        self.retries += 1
+        if self.retries > self.cfg.max_retries:
+            self._finish(f"{why}; gave up after {self.cfg.max_retries} retries", exit_status=1)
+            return
+        if resend:
+            self.log.warning(f"{why}: sending request {self.request.request_id} again "
+                             f"({self.retries}/{self.cfg.max_retries})")
+            self._publish()
+        else:
+            self.log.warning(f"{why}: re-issuing the touch ({self.retries}/{self.cfg.max_retries})")
+            self._new_request(self.last_obs_stamp_ns)
+
+    def _enter(self, phase: Phase) -> None:
+        self.phase = phase
+        self._t_phase = self._clock_s()
+
+    def _start_failure(self) -> str:
+        """Why the first decision never went out, in the words a rig user acts on."""
+        if self.last_tip_xyz is None:
+            return (f"no fingertip pose within {self.cfg.start_timeout_s:.0f} s (is the arm commander running?)")
+        start = np.round(self.start_xyz_m, 3).tolist()
+        return (f"the fingertip never reached the start position {start} within {self.cfg.start_timeout_s:.0f} s: "
+                f"it is at {np.round(self.last_tip_xyz, 3).tolist()} (see the arm commander's log)")
+
+    def _finish(self, reason: str, exit_status: int = 0) -> None:
+        if self.finished:
+            return
+        self.phase, self.reason = Phase.FINISHED, reason
+        self.exit_status = exit_status or self.exit_status
+        self.written = list(self.run.write(reason) or [])

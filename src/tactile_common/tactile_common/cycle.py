@@ -1,0 +1,168 @@
+"""The events of the touch cycle as typed values, ROS-free (docs/architecture.md, "Delivery").
+
+Every event carries an identifier, so that a reader that sees it twice (a
+durable topic hands its history to a restarted reader; a writer re-sends
+after a time-out) can tell a duplicate from a new event:
+
+- :class:`PlanRequest` (explorer → planner): ``request_id`` (ns, strictly
+  increasing per run) and the stamp the map must at least have. A re-sent
+  request keeps its id; a re-issued touch (nothing came back in time) gets a
+  new one.
+- the goal and its path (planner → commander) carry ``header.stamp`` =
+  the request id they answer, so answering one request twice gives the same
+  goal stamp and the commander runs it once.
+- :class:`PlannerAnswer` (planner → explorer) names the request it answers.
+- :class:`TouchReport` (commander → explorer, planner) names its goal stamp.
+
+All of them travel as ``diagnostic_msgs/DiagnosticStatus`` key/values (the
+conversion is in :mod:`tactile_common.cycle_msgs`); here they are plain
+dataclasses with ``values()`` and ``from_values()`` so that cores and their
+tests need no ROS.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+from typing import Mapping, Optional
+
+
+class TouchOutcome(str, enum.Enum):
+    """How a touch ended (the ``message`` of ``/arm/touch_done``)."""
+
+    CONTACT = "contact"  # the finger met the object (approach or path); an observation was published
+    FREE_SPACE = "free_space"  # full depth without contact; the probe end was published
+    UNREACHABLE = "unreachable"  # IK or workspace box rejected the touch; nothing moved
+    ABORTED = "aborted"  # e-stop, stale joint states, time-out, dry run
+
+    @property
+    def observed(self) -> bool:
+        """The touch published an observation on /tactile/contacts."""
+        return self in (TouchOutcome.CONTACT, TouchOutcome.FREE_SPACE)
+
+
+def _int(values: Mapping[str, str], key: str, default: int = 0) -> int:
+    text = values.get(key, "")
+    try:
+        return int(text) if text != "" else default
+    except ValueError:
+        raise ValueError(f"{key} must be an integer, got {text!r}") from None
+
+
+def _float(values: Mapping[str, str], key: str, default: float = 0.0) -> float:
+    text = values.get(key, "")
+    try:
+        return float(text) if text != "" else default
+    except ValueError:
+        raise ValueError(f"{key} must be a number, got {text!r}") from None
+
+
+def _xyz_text(xyz: Optional[tuple]) -> str:
+    return "" if xyz is None else ",".join(repr(float(v)) for v in xyz)
+
+
+def _xyz(values: Mapping[str, str], key: str) -> Optional[tuple]:
+    text = values.get(key, "")
+    if text == "":
+        return None
+    try:
+        xyz = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        xyz = ()
+    if len(xyz) != 3 or not all(math.isfinite(v) for v in xyz):
+        raise ValueError(f"{key} must be three finite numbers 'x,y,z', got {text!r}")
+    return xyz
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """Plan one touch on a map whose stamp is at least ``min_map_stamp_ns``.
+
+    ``start_xyz_m`` (world, m) is where the touch starts: the nominal end of
+    the previous touch (its pre-touch point, or the back-off point after a
+    path contact), or the start position. Planning from this nominal point,
+    not from the measured fingertip pose (which differs by the controller's
+    tolerance), makes the graph's decisions those of the offline loop. None:
+    plan from the measured pose (after an aborted touch).
+    """
+
+    request_id: int
+    min_map_stamp_ns: int
+    start_xyz_m: Optional[tuple] = None
+
+    def values(self) -> dict:
+        return {"request_id": str(self.request_id), "min_map_stamp_ns": str(self.min_map_stamp_ns),
+                "start_xyz_m": _xyz_text(self.start_xyz_m)}
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, str]) -> "PlanRequest":
+        request_id = _int(values, "request_id", -1)
+        if request_id < 0:
+            raise ValueError("a plan request needs a non-negative request_id")
+        return cls(request_id, _int(values, "min_map_stamp_ns"), _xyz(values, "start_xyz_m"))
+
+
+@dataclass(frozen=True)
+class PlannerAnswer:
+    """The planner's answer to one request: ``status`` 'ok' (a goal with stamp
+    ``goal_stamp_ns`` was published) or why there is none."""
+
+    request_id: int
+    status: str
+    detail: str = ""
+    goal_stamp_ns: int = 0
+    decision_ms: float = float("nan")
+    extra: Optional[Mapping[str, str]] = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def values(self) -> dict:
+        out = {"request_id": str(self.request_id), "detail": self.detail, "stamp_ns": str(self.goal_stamp_ns),
+               "decision_ms": f"{self.decision_ms:.2f}"}
+        out.update(self.extra or {})
+        return out
+
+    @classmethod
+    def from_values(cls, status: str, values: Mapping[str, str]) -> "PlannerAnswer":
+        known = {"request_id", "detail", "stamp_ns", "decision_ms"}
+        return cls(_int(values, "request_id", -1), status, values.get("detail", ""), _int(values, "stamp_ns"),
+                   _float(values, "decision_ms", float("nan")),
+                   {k: v for k, v in values.items() if k not in known})
+
+
+@dataclass(frozen=True)
+class TouchReport:
+    """The end of one touch (``/arm/touch_done``)."""
+
+    goal_stamp_ns: int
+    outcome: TouchOutcome
+    reason: str
+    observation_stamp_ns: Optional[int]
+    travel_m: float
+    duration_s: float
+    end_xyz_m: Optional[tuple] = None  # nominal end of the touch (world, m); None: unknown / did not move
+
+    def values(self) -> dict:
+        return {
+            "goal_stamp_ns": str(self.goal_stamp_ns),
+            "observation_stamp_ns": "" if self.observation_stamp_ns is None else str(self.observation_stamp_ns),
+            "travel_m": f"{self.travel_m:.6f}",
+            "duration_s": f"{self.duration_s:.6f}",
+            "reason": self.reason,
+            "end_xyz_m": _xyz_text(self.end_xyz_m),
+        }
+
+    @classmethod
+    def from_values(cls, outcome: str, values: Mapping[str, str]) -> "TouchReport":
+        try:
+            kind = TouchOutcome(outcome)
+        except ValueError:
+            raise ValueError(f"unknown touch outcome {outcome!r}; one of "
+                             f"{', '.join(o.value for o in TouchOutcome)}") from None
+        obs = values.get("observation_stamp_ns", "")
+        return cls(_int(values, "goal_stamp_ns"), kind, values.get("reason", ""),
+                   _int(values, "observation_stamp_ns") if obs != "" else None,
+                   _float(values, "travel_m"), _float(values, "duration_s"), _xyz(values, "end_xyz_m"))

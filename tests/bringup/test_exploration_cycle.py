@@ -1,0 +1,232 @@
+"""The explorer's touch cycle with a fake clock: ids, re-sends, re-issues, duplicates, stop rules."""
+
+import numpy as np
+import pytest
+
+from tactile_bringup.exploration_cycle import CycleConfig, ExplorationCycle, Phase
+from tactile_common.cycle import PlannerAnswer, TouchOutcome, TouchReport
+
+START = np.array([0.33, 0.0, 0.06])
+
+
+class FakeRun:
+    def __init__(self, touches=3):
+        self.budget, self.touches, self.travel, self.written = touches, [], [], None
+
+    def add_touch(self, goal, observation, travel_m, time_s, decision_ms):
+        self.touches.append((goal, observation, travel_m, decision_ms))
+        return {"index": len(self.touches) - 1}
+
+    def add_travel(self, travel_m, time_s):
+        self.travel.append(travel_m)
+
+    def stop_reason(self):
+        return "touch budget" if len(self.touches) >= self.budget else None
+
+    def progress_line(self, record):
+        return f"touch {record['index'] + 1}"
+
+    def write(self, reason):
+        self.written = reason
+        return ["report.json"]
+
+
+class Rig:
+    """The cycle plus a fake steady clock, a fake id clock and the requests it sent."""
+
+    def __init__(self, touches=3, **cfg):
+        self.t = 0.0
+        self.sent = []
+        self.run = FakeRun(touches)
+        self.cycle = ExplorationCycle(CycleConfig(**cfg), START, self.run, self.sent.append, lambda: self.t,
+                                      lambda: int(self.t * 1e9))
+
+    def advance(self, dt):
+        self.t += dt
+        self.cycle.tick()
+
+    def answer(self, request=None, status="ok", detail=""):
+        req = request or self.sent[-1]
+        self.cycle.on_answer(PlannerAnswer(req.request_id, status, detail, req.request_id if status == "ok" else 0, 5.0))
+
+    def report(self, outcome=TouchOutcome.CONTACT, obs_ns=None, goal_ns=None):
+        goal_ns = self.sent[-1].request_id if goal_ns is None else goal_ns
+        self.cycle.on_report(TouchReport(goal_ns, outcome, "", obs_ns, 0.1, 2.0))
+
+    def touch(self, obs_ns):
+        self.answer()
+        self.cycle.on_observation(obs_ns, np.zeros(1))
+        self.report(obs_ns=obs_ns)
+
+
+def test_first_request_waits_for_the_tip_at_the_start():
+    r = Rig()
+    r.cycle.on_tip(START + [0.01, 0, 0])
+    assert not r.sent and r.cycle.phase is Phase.WAITING_FOR_START
+    r.cycle.on_tip(START + [0.001, 0, 0])
+    assert len(r.sent) == 1 and r.sent[0].min_map_stamp_ns == 0
+    r.cycle.on_tip(START)  # later poses start nothing more
+    assert len(r.sent) == 1
+
+
+def test_a_run_of_touches_asks_for_maps_with_each_observation_and_stops_at_the_budget():
+    r = Rig(touches=3)
+    r.cycle.on_tip(START)
+    for k, obs in enumerate((11, 22, 33)):
+        r.advance(1.0)
+        r.touch(obs)
+    assert [q.min_map_stamp_ns for q in r.sent] == [0, 11, 22]
+    ids = [q.request_id for q in r.sent]
+    assert ids == sorted(set(ids))  # unique and increasing
+    assert r.cycle.finished and r.run.written == "touch budget" and r.cycle.exit_status == 0
+
+
+def test_ids_stay_strictly_increasing_when_the_clock_does_not_move():
+    r = Rig(touches=3)
+    r.cycle.on_tip(START)
+    r.touch(1)
+    r.touch(2)
+    ids = [q.request_id for q in r.sent]
+    assert ids == [0, 1, 2]
+
+
+def test_an_unanswered_request_is_sent_again_with_the_same_id_then_the_run_gives_up():
+    r = Rig(answer_timeout_s=5.0, max_retries=2)
+    r.cycle.on_tip(START)
+    r.advance(4.9)
+    assert len(r.sent) == 1
+    r.advance(0.2)
+    assert len(r.sent) == 2 and r.sent[1] == r.sent[0]
+    r.advance(5.1)
+    assert len(r.sent) == 3 and r.sent[2] == r.sent[0]
+    r.advance(5.1)
+    assert r.cycle.finished and r.cycle.exit_status == 1 and "gave up after 2 retries" in r.cycle.reason
+    assert "no answer to request" in r.cycle.reason
+
+
+def test_a_late_answer_after_a_resend_is_taken_and_duplicates_are_ignored():
+    r = Rig(answer_timeout_s=5.0)
+    r.cycle.on_tip(START)
+    r.advance(6.0)  # re-sent once
+    r.answer(r.sent[0])
+    r.answer(r.sent[0])  # the answer to the re-send: the same answer again
+    assert r.cycle.phase is Phase.TOUCHING and len(r.sent) == 2
+
+
+def test_answers_and_reports_of_other_requests_are_ignored():
+    r = Rig()
+    r.cycle.on_tip(START)
+    first = r.sent[-1]
+    r.cycle.on_answer(PlannerAnswer(first.request_id + 99, "ok", "", first.request_id + 99))
+    assert r.cycle.phase is Phase.PLANNING
+    r.answer()
+    r.cycle.on_observation(5, np.zeros(1))
+    r.report(obs_ns=5, goal_ns=first.request_id + 99)  # another goal's report (history, a stray touch)
+    assert not r.run.touches
+    r.report(obs_ns=5)
+    assert len(r.run.touches) == 1
+
+
+def test_a_report_waits_for_its_observation_and_a_missing_one_reissues_the_touch():
+    r = Rig(observation_timeout_s=3.0)
+    r.cycle.on_tip(START)
+    r.answer()
+    r.report(obs_ns=77)
+    assert not r.run.touches and r.cycle.phase is Phase.TOUCHING
+    r.cycle.on_observation(77, np.ones(1))  # arrives after the report: the touch completes
+    assert len(r.run.touches) == 1 and r.sent[-1].min_map_stamp_ns == 77
+    r.answer()
+    r.report(obs_ns=88)
+    r.advance(3.1)  # never arrives: the touch is re-issued under a new id
+    assert r.sent[-1].min_map_stamp_ns == 77 and r.sent[-1].request_id > r.sent[-2].request_id
+    assert len(r.run.touches) == 1
+
+
+def test_a_touch_that_never_ends_is_reissued_under_a_new_id():
+    r = Rig(touch_timeout_s=10.0, max_retries=1)
+    r.cycle.on_tip(START)
+    r.advance(1.0)
+    r.answer()
+    r.advance(10.5)
+    assert len(r.sent) == 2 and r.sent[1].request_id > r.sent[0].request_id
+    assert r.sent[1].min_map_stamp_ns == r.sent[0].min_map_stamp_ns
+    r.answer()
+    r.advance(10.5)
+    assert r.cycle.finished and r.cycle.exit_status == 1 and "did not end" in r.cycle.reason
+
+
+def test_the_planner_waiting_in_vain_for_a_map_makes_the_explorer_ask_again():
+    r = Rig()
+    r.cycle.on_tip(START)
+    r.answer(status="timeout", detail="no goal after 30 s: still waiting for a map")
+    assert len(r.sent) == 2 and r.sent[1] == r.sent[0] and not r.cycle.finished
+
+
+def test_a_planner_without_a_goal_ends_the_run_with_its_reason():
+    r = Rig()
+    r.cycle.on_tip(START)
+    r.answer(status="no_candidates", detail="the estimate lost the object")
+    assert r.cycle.finished and r.run.written == "planner: no_candidates: the estimate lost the object"
+
+
+def test_unreachable_goals_ask_for_a_new_plan_on_the_same_map_until_the_limit():
+    r = Rig(max_unreachable=2)
+    r.cycle.on_tip(START)
+    r.touch(9)
+    r.answer()
+    r.report(TouchOutcome.UNREACHABLE)
+    assert r.sent[-1].min_map_stamp_ns == 9 and not r.cycle.finished
+    r.answer()
+    r.report(TouchOutcome.UNREACHABLE)
+    assert r.cycle.finished and r.cycle.reason == "2 unreachable goals in a row"
+
+
+def test_an_aborted_touch_is_reissued_and_its_travel_counted():
+    r = Rig()
+    r.cycle.on_tip(START)
+    r.answer()
+    r.report(TouchOutcome.ABORTED)
+    assert len(r.sent) == 2 and r.run.travel == [0.1] and not r.cycle.finished
+
+
+def test_the_tip_never_at_the_start_says_where_it_is():
+    r = Rig(start_timeout_s=5.0)
+    r.cycle.on_tip(START + [0.1, 0, 0])
+    r.advance(5.1)
+    assert r.cycle.finished and r.cycle.exit_status == 1 and "never reached the start position" in r.cycle.reason
+
+
+def test_interrupt_keeps_what_was_measured_once():
+    r = Rig(touches=5)
+    r.cycle.on_tip(START)
+    r.touch(1)
+    r.cycle.interrupt()
+    r.cycle.interrupt()
+    assert r.run.written == "interrupted" and len(r.run.touches) == 1
+
+
+@pytest.mark.parametrize("outcome", ["contact", "free_space", "unreachable", "aborted"])
+def test_reports_round_trip_through_their_key_values(outcome):
+    rep = TouchReport(123, TouchOutcome(outcome), "why", None if outcome == "aborted" else 456, 0.25, 3.5)
+    assert TouchReport.from_values(outcome, rep.values()) == rep
+
+
+def test_an_unknown_outcome_is_a_clear_error():
+    with pytest.raises(ValueError, match="unknown touch outcome 'exploded'"):
+        TouchReport.from_values("exploded", {})
+
+
+def test_each_request_names_the_nominal_start_of_its_touch():
+    r = Rig(touches=5)
+    r.cycle.on_tip(START + [0.002, 0, 0])  # measured: near the start, not on it
+    assert r.sent[0].start_xyz_m == tuple(START)
+    r.answer()
+    r.cycle.on_observation(5, np.zeros(1))
+    r.cycle.on_report(TouchReport(r.sent[-1].request_id, TouchOutcome.CONTACT, "", 5, 0.1, 1.0, (0.4, 0.1, 0.06)))
+    assert r.sent[-1].start_xyz_m == (0.4, 0.1, 0.06)
+    r.answer()
+    r.report(TouchOutcome.UNREACHABLE)  # nothing moved: same start
+    assert r.sent[-1].start_xyz_m == (0.4, 0.1, 0.06)
+    r.answer()
+    r.report(TouchOutcome.ABORTED)  # stopped somewhere: the planner uses the measured pose
+    assert r.sent[-1].start_xyz_m is None
