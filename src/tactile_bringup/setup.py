@@ -12,7 +12,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
-        ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
+        ("share/" + PACKAGE + "/config", glob("config/*.yaml") + glob("config/*.json") + glob("config/*.rviz")),
         ("share/" + PACKAGE + "/launch", glob("launch/*.launch.py")),
     ],
     install_requires=["setuptools"],
@@ -28,6 +28,7 @@ setup(
             "tactile-explore-offline = tactile_bringup.explore_offline:main",
             "tactile-benchmark = tactile_bringup.benchmark:main",
             "explorer = tactile_bringup.explorer_node:main",
+            "viz = tactile_bringup.viz_node:main",
         ],
     },
 )
