@@ -1,8 +1,11 @@
 """Shape accuracy of an estimate against the simulated object (docs/architecture.md, Metrics).
 
 IoU of the estimated solid {μ < 0} against the true solid on a fixed lattice
-over the estimator's workspace (z ≥ 0 in 3D), and the mean distance from the
-true surface to the estimated zero level set.
+over the estimator's workspace (z ≥ 0 in 3D); the same IoU against the
+finger-reachable solid (the true solid closed by a ball of the planner's
+``tip_radius_m``; in 3D counted above ``min_tip_z_m`` = table + table margin
++ tip radius: :func:`tactile_sim.metrics.reachable_inside`); and the mean
+distance from the true surface to the estimated zero level set.
 """
 
 from __future__ import annotations
@@ -24,10 +27,18 @@ class Evaluator:
         self.points = metrics.evaluation_lattice(experiment.evaluation_bounds(),
                                                  experiment.evaluation_resolution_m)
         self.true_surface = metrics.true_surface_samples(self.obj)
+        planner = experiment.planner_params
+        self.tip_radius_m = float(planner.get("tip_radius_m", 0.01))
+        self.min_tip_z_m = float(planner.get("min_tip_z_m", 0.015)) if self.obj.dim == 3 else None
 
     def iou(self, estimator) -> float:
         """IoU of {μ < 0}, μ interpolated from the estimator's lattice (cheap after every touch)."""
         return metrics.iou(estimator.lattice_inside, self.obj, self.points)
+
+    def iou_reachable(self, estimator) -> float:
+        """IoU of {μ < 0} against the finger-reachable solid (fair to a finger of radius r)."""
+        return metrics.reachable_iou(estimator.lattice_inside, self.obj, self.points, self.tip_radius_m,
+                                     self.min_tip_z_m)
 
     def surface_error_m(self, estimator) -> Optional[float]:
         surface = estimator.surface_points()

@@ -68,6 +68,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "travel_m": float(travel_m),
         "time_s": float(time_s),
         "iou": evaluator.iou(estimator) if evaluator else None,
+        "iou_reachable": evaluator.iou_reachable(estimator) if evaluator else None,
         "surface_error_m": evaluator.surface_error_m(estimator) if evaluator else None,
         "decision_ms": float(decision_ms),
         "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,

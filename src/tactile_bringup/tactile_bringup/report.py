@@ -6,10 +6,18 @@
      "touches": [{"index", "target", "contact"|null, "normal"|null, "outcome",
                   "probe_end"|null (free space: the finger centre at max depth),
                   "travel_m" (cumulative), "time_s" (cumulative), "iou",
-                  "surface_error_m", "decision_ms"}, ...],
+                  "iou_reachable", "surface_error_m", "decision_ms"}, ...],
      "summary": {"final_iou", "travel_to_iou_0.90_m", "travel_to_iou_0.95_m",
                  "time_to_iou_0.90_s", "time_to_iou_0.95_s", "auc_travel",
+                 "final_iou_reachable", "travel_to_iou_reachable_0.90_m", ...,
+                 "time_to_iou_reachable_0.95_s",
                  "touches", "travel_m", "time_s", "stopped_because"}}
+
+``iou`` is the raw IoU against the true solid; ``iou_reachable`` the IoU
+against the finger-reachable solid (the true solid closed by a ball of the
+tip radius; in 3D counted above the lowest tip-centre height:
+:func:`tactile_sim.metrics.reachable_inside`). A report written before
+``iou_reachable`` existed has None there.
 
 ``auc_travel`` is the area under the (1 − IoU) curve over cumulative travel
 (metres), IoU held constant between touches (a step function starting at
@@ -31,10 +39,11 @@ SUMMARY_KEYS = ("final_iou", "travel_to_iou_0.90_m", "travel_to_iou_0.95_m",
 IOU_LEVELS = (0.90, 0.95)
 
 
-def first_reaching(touches: Sequence[dict], level: float, key: str) -> Optional[float]:
-    """``touch[key]`` (cumulative travel or time) at the first touch whose IoU ≥ level."""
+def first_reaching(touches: Sequence[dict], level: float, key: str, iou_key: str = "iou") -> Optional[float]:
+    """``touch[key]`` (cumulative travel or time) at the first touch whose ``touch[iou_key]`` ≥ level."""
     for t in touches:
-        if t["iou"] is not None and t["iou"] >= level:
+        v = t.get(iou_key)
+        if v is not None and v >= level:
             return float(t[key])
     return None
 
@@ -63,6 +72,10 @@ def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_becau
     for level in IOU_LEVELS:
         summary[f"travel_to_iou_{level:.2f}_m"] = first_reaching(touches, level, "travel_m")
         summary[f"time_to_iou_{level:.2f}_s"] = first_reaching(touches, level, "time_s")
+    summary["final_iou_reachable"] = touches[-1].get("iou_reachable") if touches else None
+    for level in IOU_LEVELS:
+        summary[f"travel_to_iou_reachable_{level:.2f}_m"] = first_reaching(touches, level, "travel_m", "iou_reachable")
+        summary[f"time_to_iou_reachable_{level:.2f}_s"] = first_reaching(touches, level, "time_s", "iou_reachable")
     return summary
 
 

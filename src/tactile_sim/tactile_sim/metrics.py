@@ -2,6 +2,9 @@
 
 - IoU: |A ∩ B| / |A ∪ B| of the estimated and true solids, counted on a fixed
   evaluation lattice of cell centres (area in 2D, volume above the table in 3D).
+- Reachable IoU: the same IoU against the finger-reachable solid (the
+  true solid closed by a ball of the tip radius, above the lowest reachable
+  tip height), see :func:`reachable_inside`.
 - Surface error: mean distance from samples of the TRUE surface to the nearest
   point of the estimated zero level set (given as points); also the reverse
   direction (|sdf| of the estimated points, exact), their symmetric mean and
@@ -15,6 +18,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from tactile_sim.objects import SDFObject
@@ -81,6 +85,143 @@ def true_inside(obj: SDFObject, lattice_points: np.ndarray) -> np.ndarray:
         inside[box] = obj.sdf(p[box]) < 0.0
         cache[key] = inside
     return cache[key]
+
+
+def lattice_axes(lattice_points: np.ndarray) -> list[np.ndarray]:
+    """The per-axis coordinates of a regular C-order lattice (as :func:`evaluation_lattice` makes).
+
+    Raises ValueError when the points are not such a lattice.
+    """
+    pts = np.asarray(lattice_points, dtype=float)
+    axes = [np.unique(pts[:, k]) for k in range(pts.shape[1])]
+    shape = tuple(len(a) for a in axes)
+    if int(np.prod(shape)) != len(pts) or any(len(a) < 2 for a in axes):
+        raise ValueError(f"lattice_points ({len(pts)} points) are not a regular grid of {shape} nodes")
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
+    if not np.allclose(grid, pts, rtol=0.0, atol=1e-12):
+        raise ValueError("lattice_points are not in C order (first axis slowest), as evaluation_lattice makes them")
+    for k, a in enumerate(axes):
+        step = np.diff(a)
+        if not np.allclose(step, step[0], rtol=1e-6, atol=0.0):
+            raise ValueError(f"lattice axis {k} is not evenly spaced")
+    return axes
+
+
+def reachable_inside(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: float,
+                     min_tip_z_m: float | None = None) -> np.ndarray:
+    """The finger-reachable solid on a regular lattice: boolean (M,), cached on the object.
+
+    A spherical tip of radius r whose centre c may go where sdf(c) ≥ r (and,
+    in 3D, c_z ≥ ``min_tip_z_m`` = table + table margin + r) sweeps the
+    reachable free space F = ⋃ B(c, r) over the centres connected to the
+    outside. The reachable solid is its complement, ¬F: the true solid plus
+    every concavity a ball of radius r cannot enter (slots narrower than 2r,
+    fillets of radius r in concave corners, the space under an overhang
+    lower than the tip can pass). Without the height limit this is the
+    morphological closing of the solid by the ball B(0, r) (complement of
+    the opening of the complement), and a convex solid is unchanged.
+
+    Computed once per object and lattice (vectorised):
+
+    1. C = {sdf ≥ r} (∩ {z ≥ min_tip_z_m}) on the lattice, padded on every
+       side (but below the table) with free nodes; only components of C
+       connected to the padding are kept (``ndimage.label``): enclosed
+       voids are not reachable.
+    2. F ⊇ {p : distance to the nearest node of C ≤ r} (Euclidean distance
+       transform, ``ndimage.distance_transform_edt`` with the lattice
+       spacing). Lattice centres under-estimate C by up to half a cell, so
+    3. a node p with 0 ≤ sdf(p) < r is also in F when one of two exact
+       centres is free (sdf(c) ≥ r − 0.1 mm, c_z ≥ min_tip_z_m, next to a
+       kept node): c = p + (r − sdf(p))·∇sdf(p), the ball touching the
+       surface at p's closest point (makes flat and convex parts exact),
+       or c = p + r·u, u the unit vector to p's nearest free centre node
+       (the fillet arc of a concave corner, within ~0.1 cell).
+
+    Nodes with sdf < 0 are always in the reachable solid. Points outside
+    the lattice box are treated as free (keep the object well inside it).
+    In 3D, nodes with z < ``min_tip_z_m`` fall in the band the tip cannot
+    reach; :func:`reachable_iou` leaves them out of the count.
+    """
+    r = float(tip_radius_m)
+    if not (np.isfinite(r) and r > 0.0):
+        raise ValueError(f"tip_radius_m must be positive, got {tip_radius_m!r}")
+    pts = np.ascontiguousarray(lattice_points, dtype=float)[:, :obj.dim]
+    if obj.dim == 3 and min_tip_z_m is None:
+        raise ValueError("a 3D object needs min_tip_z_m (table + table margin + tip radius)")
+    zmin = None if obj.dim == 2 else float(min_tip_z_m)
+    key = ("reach", pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest(), round(r, 12),
+           None if zmin is None else round(zmin, 12))
+    cache = obj.__dict__.setdefault("_inside_cache", {})
+    if key in cache:
+        return cache[key]
+    axes = lattice_axes(pts)
+    shape = tuple(len(a) for a in axes)
+    h = np.array([a[1] - a[0] for a in axes])
+    # Signed distance where it matters (within r + a cell of the object's box); far nodes are free.
+    d = np.full(len(pts), np.inf)
+    near = np.all((pts >= obj.bounds[0] - r - h.max()) & (pts <= obj.bounds[1] + r + h.max()), axis=1)
+    d[near] = obj.sdf(pts[near])
+    centre_ok = d >= r
+    if zmin is not None:
+        centre_ok &= pts[:, 2] >= zmin
+    # 1. free centres connected to the outside.
+    pad = np.ceil(r / h).astype(int) + 2
+    C = np.pad(centre_ok.reshape(shape), [(p, p) for p in pad], constant_values=True)
+    if zmin is not None:
+        C[:, :, :pad[2]] = False  # below the lattice's bottom: the table, no tip centre
+    labels, _ = ndimage.label(C, structure=ndimage.generate_binary_structure(obj.dim, obj.dim))
+    outside = labels[(0,) * (obj.dim - 1) + (-1,)]
+    C = labels == outside
+    # 2. within r of a free centre node.
+    dist, nearest = ndimage.distance_transform_edt(~C, sampling=h, return_indices=True)
+    inner = tuple(slice(p, p + n) for p, n in zip(pad, shape))
+    free = (dist[inner] <= r * (1 + 1e-9)).ravel()
+    # 3. exact balls for the band 0 <= sdf < r not yet covered: the one tangent at the closest
+    # surface point, and the one towards the nearest free centre node (concave corners).
+    band = np.nonzero((d >= 0.0) & (d < r) & ~free)[0]
+    if len(band):
+        origin = np.array([a[0] for a in axes])
+        kept = ndimage.binary_dilation(C, structure=ndimage.generate_binary_structure(obj.dim, obj.dim))
+        p = pts[band]
+        towards = np.stack([nearest[k][inner].ravel()[band] for k in range(obj.dim)], axis=1)
+        towards = origin + (towards - pad) * h - p
+        norm = np.maximum(np.linalg.norm(towards, axis=1, keepdims=True), 1e-300)
+        for c in (p + (r - d[band])[:, None] * obj.gradient(p), p + r * towards / norm):
+            ok = obj.sdf(c) >= r - 1e-4
+            if zmin is not None:
+                ok &= c[:, 2] >= zmin - 1e-9
+            idx = np.clip(np.rint((c - origin) / h).astype(int) + pad, 0, np.array(kept.shape) - 1)
+            ok &= kept[tuple(idx.T)]
+            free[band[ok]] = True
+    inside = ~free | (d < 0.0)
+    if len(cache) >= 8:
+        cache.pop(next(iter(cache)))
+    cache[key] = inside
+    return inside
+
+
+def reachable_iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: float,
+                  min_tip_z_m: float | None = None) -> float:
+    """IoU of the estimate against the finger-reachable solid (:func:`reachable_inside`).
+
+    2D: every lattice node counts. 3D: only nodes with z ≥ ``min_tip_z_m``
+    (the band below the lowest tip-centre height — table + table margin + tip
+    radius — is left out of both solids: the finger never senses it).
+    Both empty → 1.
+    """
+    pts = np.asarray(lattice_points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] < obj.dim:
+        raise ValueError(f"lattice_points must be (M, >= {obj.dim}), got shape {pts.shape}")
+    est = np.asarray(inside_est(pts))
+    if est.shape != (len(pts),):
+        raise ValueError(f"inside_est returned shape {est.shape}, expected ({len(pts)},)")
+    est = est.astype(bool)
+    true = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m)
+    if obj.dim == 3:
+        counted = pts[:, 2] >= float(min_tip_z_m)
+        est, true = est & counted, true & counted
+    union = np.count_nonzero(est | true)
+    return 1.0 if union == 0 else np.count_nonzero(est & true) / union
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tactile_sim import sdf2d
+from tactile_sim import generated, sdf2d
 from tactile_sim.catalogue import SHAPES_2D, SHAPES_3D
 from tactile_sim.polygon_file import MAX_SIZE_M, MIN_SIZE_M, check_size, load_polygon_csv
 from tactile_sim.sdf_object import FD_STEP_M, PlacedShape, Pose, Prism, SDFObject
@@ -53,8 +53,10 @@ def make_object(name_or_path: str | Path, mode: str = "2d", center_xy_m: tuple[f
     """Build a placed object by built-in name or from a file.
 
     Args:
-        name_or_path: a name of :func:`list_objects` or a path to a ``.csv``
-            2D polygon or a ``.stl`` / ``.obj`` 3D triangle mesh.
+        name_or_path: a name of :func:`list_objects`, a generated name
+            (``gen2d-017-letter_T``, ``gen3d-s2-004-boxes``: see
+            :mod:`tactile_sim.generated`) or a path to a ``.csv`` 2D polygon
+            or a ``.stl`` / ``.obj`` 3D triangle mesh.
         mode: "2d" (cross-section, dim 2) or "3d" (dim 3). A 2D shape or
             polygon in 3D mode becomes the prism of height ``prism_height_m``.
         center_xy_m, yaw_rad, scale: object pose on the table (world frame).
@@ -88,8 +90,16 @@ def make_object(name_or_path: str | Path, mode: str = "2d", center_xy_m: tuple[f
             raise ValueError(f"'{text}' is a 3D object; 2D objects are: {', '.join(SHAPES_2D)}")
         fn, bounds, _, grad = SHAPES_3D[text]
         obj = PlacedShape(text, 3, fn, bounds, pose, grad)
+    elif generated.is_generated_name(text):
+        shape = generated.make_generated(text)
+        if shape.dim == 3 and mode == "2d":
+            raise ValueError(f"'{text}' is a generated 3D object; use mode '3d' or a gen2d-... name")
+        obj = PlacedShape(text, shape.dim, shape.sdf, shape.bounds, pose)
+        obj.family = shape.family
+        obj.description = shape.description
     else:
-        raise ValueError(f"unknown object {text!r}: use a path (.csv, .stl, .obj) or one of "
+        raise ValueError(f"unknown object {text!r}: use a path (.csv, .stl, .obj), a generated name "
+                         f"(gen2d-000-blob ..., see tactile_sim.generated.suite_names) or one of "
                          f"2D: {', '.join(SHAPES_2D)}; 3D: {', '.join(SHAPES_3D)}")
     if mode == "3d" and obj.dim == 2:
         obj = Prism(obj, prism_height_m)
