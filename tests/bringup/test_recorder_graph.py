@@ -2,18 +2,22 @@
 
 from __future__ import annotations
 
+import io
 import os
 import signal
+import struct
 from pathlib import Path
 
 import pytest
 import yaml
 from geometry_msgs.msg import PoseStamped
+from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Channel, Message
+from mcap.stream_reader import StreamReader
 from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import String
 
 from tactile_bringup.mcap_recorder import recover
@@ -46,21 +50,43 @@ def talker_cloud_key() -> tuple:
     return cloud_key(serialize_message(to_pointcloud2(seeded_cloud(0, N_POINTS), topics.WORLD_FRAME)))
 
 
+def _on_disk(path: Path) -> dict:
+    """Messages per topic in the chunks the recorder has written so far (its file still open)."""
+    counts: dict = {}
+    topic_of: dict = {}
+    if not path.exists():
+        return counts
+    try:
+        for record in StreamReader(io.BytesIO(path.read_bytes()), skip_magic=False).records:
+            if isinstance(record, Channel):
+                topic_of[record.id] = record.topic
+            elif isinstance(record, Message):
+                topic = topic_of[record.channel_id]
+                counts[topic] = counts.get(topic, 0) + 1
+    except (McapError, EOFError, ValueError, struct.error):
+        pass  # the record being written
+    return counts
+
+
+def _subscribed(node, topic: str, node_name: str) -> bool:
+    return any(i.node_name == node_name for i in node.get_subscriptions_info_by_topic(topic))
+
+
 def record_short_graph(graph, output: Path) -> dict:
     """Record cloud_talker, a latched String and a PoseStamped stream; stop the recorder (SIGINT).
 
     Returns the serialized messages the test published, by topic.
     """
     graph.start("talker", ["cloud_talker", "--ros-args", "-p", f"n_points:={N_POINTS}", "-p", "period_s:=0.05"])
-    graph.start("recorder", ["recorder", "--ros-args", "-p", f"output:={output}", "-p", "discovery_period_s:=0.2"])
+    graph.start("recorder", ["recorder", "--ros-args", "-p", f"output:={output}", "-p", "discovery_period_s:=0.2",
+                              "-p", "max_chunk_interval_s:=0.1"])  # chunks on disk every 0.1 s: the test reads them
     node = graph.node
     latched_pub = node.create_publisher(String, "/latched_note", qos.LATCHED)
     latched_pub.publish(String(data=LATCHED_TEXT))
     pose_pub = node.create_publisher(PoseStamped, "/pose", qos.EVENTS)
-    clouds = graph.collect("/cloud", PointCloud2, qos.EVENTS, raw=True)
     graph.wait_for(
         lambda: pose_pub.get_subscription_count() and latched_pub.get_subscription_count() and
-        "recording /cloud" in graph.procs["recorder"].log(),
+        _subscribed(node, "/cloud", "recorder"),
         timeout_s=20, what="the recorder to subscribe",
     )
     poses = []
@@ -78,9 +104,11 @@ def record_short_graph(graph, output: Path) -> dict:
     timer = node.create_timer(0.02, publish_pose)
     graph.wait_for(lambda: len(poses) == N_POSES, timeout_s=20, what="the poses to be sent")
     node.destroy_timer(timer)
-    # The graph keeps running: wait for five more talker clouds so the last pose has arrived.
-    seen = len(clouds)
-    graph.wait_for(lambda: len(clouds) >= seen + 5, timeout_s=20, what="more clouds")
+    def recorded():
+        n = _on_disk(output)
+        return n.get("/pose") == N_POSES and n.get("/latched_note") == 1 and n.get("/cloud", 0) >= 5
+
+    graph.wait_for(recorded, timeout_s=20, what="every pose, the latched note and five clouds in the file")
     assert graph.procs["recorder"].stop() == 0, graph.logs()
     return {"/pose": poses, "/latched_note": [serialize_message(String(data=LATCHED_TEXT))]}
 
@@ -166,26 +194,29 @@ def test_sim_time_log_times_and_exclude(ros_graph, tmp_path):
     ros_graph.start("recorder", [
         "recorder", "--ros-args", "-p", f"output:={path}", "-p", "use_sim_time:=true",
         "-p", "exclude:=['/rosout', '/parameter_events']", "-p", "discovery_period_s:=0.2",
+        "-p", "max_chunk_interval_s:=0.1",
     ])
     node = ros_graph.node
     clock_pub = node.create_publisher(Clock, topics.CLOCK, qos.CLOCK)
     note_pub = node.create_publisher(String, "/note", qos.EVENTS)
-    sim = {"ticks": 0, "notes": 0, "notes_from": None}
+    sim = {"ticks": 0, "notes": 0, "notes_on": False}
     t0_ns = 1000 * 10**9
     tick_ns = 10**8
 
-    def tick():  # /clock at 50 Hz advancing 0.1 s per tick; notes once the recorder listens
+    def tick():  # /clock at 50 Hz advancing 0.1 s per tick; then ten notes
         msg = Clock(clock=time_from_ns(t0_ns + sim["ticks"] * tick_ns))
         clock_pub.publish(msg)
         sim["ticks"] += 1
-        if note_pub.get_subscription_count() and sim["notes_from"] is None:
-            sim["notes_from"] = sim["ticks"] + 10  # give its time source a few clock ticks
-        if sim["notes_from"] is not None and sim["ticks"] >= sim["notes_from"] and sim["notes"] < 10:
+        if sim["notes_on"] and sim["notes"] < 10:
             note_pub.publish(String(data=f"note {sim['notes']}"))
             sim["notes"] += 1
 
     node.create_timer(0.02, tick)
-    ros_graph.wait_for(lambda: sim["notes"] == 10 and sim["ticks"] >= sim["notes_from"] + 20, 30, "ten notes")
+    # notes once the recorder listens to /note and has recorded /clock (its clock has ticked too)
+    ros_graph.wait_for(lambda: note_pub.get_subscription_count() and _on_disk(path).get(topics.CLOCK), 30,
+                       "the recorder on /note and /clock")
+    sim["notes_on"] = True
+    ros_graph.wait_for(lambda: _on_disk(path).get("/note") == 10, 30, "ten notes in the file")
     last_clock_ns = t0_ns + sim["ticks"] * tick_ns
     recorder = ros_graph.procs["recorder"]
     os.killpg(recorder.popen.pid, signal.SIGTERM)  # SIGTERM finalises the file too
