@@ -28,7 +28,8 @@ def draw_iou_panel(ax, report: dict, x_key: str) -> dict:
     for key in keys:
         x, y = step_curve(report, x_key, key)
         ax.step(x, y, where="post", label=IOU_KEYS[key], zorder=3, **STYLES[key])
-        ax.plot(x[1:], y[1:], "o", ms=2.5, color=STYLES[key]["color"], zorder=3)
+        ax.plot(x[-len(report["touches"]):], y[-len(report["touches"]):], "o", ms=2.5,
+                color=STYLES[key]["color"], zorder=3)
         for level in LEVELS:
             hit = crossing(x, y, level)
             if hit is None:
@@ -37,7 +38,8 @@ def draw_iou_panel(ax, report: dict, x_key: str) -> dict:
             drawn[(key, level)] = hit
             ax.plot(*hit, marker="D", ms=6, mfc="none", mec=LEVEL_COLOURS[level], mew=1.4, zorder=4)
             value = f"{hit[0]:.2f} m" if x_key == "travel_m" else f"{hit[0]:.0f} s"
-            notes.append(f"{IOU_KEYS[key]} ≥ {level:.2f} at {value} (touch {int(np.argmax(y >= level)) - 1})")
+            touch = int(np.argmax(y >= level)) - (len(y) - len(report["touches"]))
+            notes.append(f"{IOU_KEYS[key]} ≥ {level:.2f} at {value} (touch {touch})")
     if not keys:
         ax.text(0.5, 0.5, "no IoU recorded (no ground truth)", ha="center", va="center",
                 transform=ax.transAxes, fontsize=9, color="0.4")

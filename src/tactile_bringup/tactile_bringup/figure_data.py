@@ -21,7 +21,7 @@ import numpy as np
 #: IoU levels the figures mark (the report's summary levels).
 LEVELS = (0.90, 0.95)
 #: Curves a touch record may carry: key -> legend label.
-IOU_KEYS = {"iou": "IoU", "iou_reachable": "IoU (finger-reachable)"}
+IOU_KEYS = {"iou": "IoU", "iou_reachable": "reachable IoU"}
 
 
 def iou_keys(report: dict) -> list[str]:
@@ -30,22 +30,24 @@ def iou_keys(report: dict) -> list[str]:
     return [k for k in IOU_KEYS if touches and all(t.get(k) is not None for t in touches)]
 
 
-def _prior(report: dict, key: str) -> float:
-    s = report.get("summary", {})
-    value = s.get("prior_" + key, s.get("prior_iou") if key == "iou" else None)
-    if value is None:  # no prior recorded for this curve: start at the first touch's value
-        value = report["touches"][0][key] if report["touches"] else 0.0
-    return float(value)
+def _prior(report: dict, key: str) -> Optional[float]:
+    """The curve's value before the first touch (``summary.prior_<key>``), None if not recorded."""
+    value = report.get("summary", {}).get("prior_" + key)
+    return None if value is None else float(value)
 
 
 def step_curve(report: dict, x_key: str = "travel_m", y_key: str = "iou") -> tuple[np.ndarray, np.ndarray]:
-    """(x, y) of the step curve: x[0] = 0 with the prior's value, then one point per touch."""
+    """(x, y) of the step curve: x[0] = 0 with the prior's value (when the summary has it:
+    ``prior_iou``; else the curve starts at the first touch), then one point per touch."""
     if x_key not in ("travel_m", "time_s"):
         raise ValueError(f"x_key must be 'travel_m' or 'time_s', got '{x_key}'")
     touches = report["touches"]
-    x = np.array([0.0] + [float(t[x_key]) for t in touches])
-    y = np.array([_prior(report, y_key)] + [float(t[y_key]) for t in touches])
-    return x, y
+    prior = _prior(report, y_key)
+    x = [float(t[x_key]) for t in touches]
+    y = [float(t[y_key]) for t in touches]
+    if prior is not None or not touches:
+        x, y = [0.0] + x, [prior or 0.0] + y
+    return np.array(x), np.array(y)
 
 
 def crossing(x: np.ndarray, y: np.ndarray, level: float) -> Optional[tuple[float, float]]:

@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from .figure_curves import draw_iou_panel, title  # noqa: E402
 from .figure_data import touch_geometry  # noqa: E402
@@ -68,7 +69,7 @@ def draw_plane(ax, report: dict, estimator=None, obj=None, estimate_xy=None, tru
         mesh = ax.pcolormesh(ax_x, ax_y, log_sd, cmap=SIGMA_CMAP, shading="gouraud", zorder=0,
                              vmin=lo, vmax=hi + 0.6 * (hi - lo))
         if fig is not None:
-            cb = fig.colorbar(mesh, cax=cbar_ax) if cbar_ax is not None else fig.colorbar(mesh, ax=ax)
+            cb = fig.colorbar(mesh, cax=cbar_ax if cbar_ax is not None else ax.inset_axes([1.02, 0.0, 0.03, 1.0]))
             cb.ax.set_ylim(lo, hi)
             cb.set_label("log$_{10}$ σ of the posterior f (σ in m)")
     gx = np.linspace(box[0, 0], box[1, 0], grid_points)
@@ -141,7 +142,8 @@ def _draw_touches(ax, report: dict, fig, handles: list) -> None:
         ax.scatter(P[:, 0], P[:, 1], s=40, c=[c for _, c in free], marker="X", edgecolors="k", linewidths=0.5,
                    zorder=7)
         handles.append(Line2D([], [], marker="X", ls="", mfc="0.6", mec="k", label="free-space probe end"))
-    handles.append(Line2D([], [], color=cmap(0.4), lw=1.0, label="path (—) and approach (⋯)"))
+    if any(len(g.path_xyz) for g in geo):
+        handles.append(Line2D([], [], color=cmap(0.4), lw=1.0, label="path (—) and approach (⋯)"))
     for g in geo:  # order numbers, offset along the normal (outwards) when there is one
         off = g.normal_xyz[:2] if g.normal_xyz is not None else np.array([1.0, 1.0])
         off = off / max(np.linalg.norm(off), 1e-12) * (0.016 if g.contact else 0.008)
@@ -149,10 +151,11 @@ def _draw_touches(ax, report: dict, fig, handles: list) -> None:
                     color="0.1", bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.7))
     if fig is not None:
         sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, max(n - 1, 1)))
-        cax = ax.inset_axes([0.56, 0.035, 0.41, 0.022])
-        cax.set_facecolor("white")
+        cax = ax.inset_axes([0.56, 0.03, 0.41, 0.022])
         cb = fig.colorbar(sm, cax=cax, orientation="horizontal")
-        cb.ax.tick_params(labelsize=7)
+        cb.ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        cb.ax.tick_params(labelsize=7, top=True, labeltop=True, bottom=False, labelbottom=False)
+        cb.ax.xaxis.set_label_position("top")
         cb.set_label("touch number (path colour)", fontsize=7)
 
 
@@ -160,13 +163,13 @@ def plot_progress_2d(report: dict, path, estimator=None, obj=None, estimate_xy=N
                      dpi: int = 110) -> dict:
     """Write the 2D progress figure to ``path`` (PNG); the IoU crossings drawn, per x key."""
     fig = plt.figure(figsize=(15, 8))
-    gs = fig.add_gridspec(2, 4, width_ratios=[1.45, 0.035, 0.3, 1.0], hspace=0.3, wspace=0.05)
+    gs = fig.add_gridspec(2, 3, width_ratios=[1.45, 0.3, 1.0], hspace=0.3, wspace=0.05)
     ax_map = fig.add_subplot(gs[:, 0])
-    draw_plane(ax_map, report, estimator, obj, estimate_xy, truth_xy, fig, cbar_ax=fig.add_subplot(gs[:, 1]))
+    draw_plane(ax_map, report, estimator, obj, estimate_xy, truth_xy, fig)
     ax_map.set_title("posterior σ, estimate vs truth, touches in order", fontsize=10)
     crossings = {}
     for row, key in enumerate(("travel_m", "time_s")):
-        crossings[key] = draw_iou_panel(fig.add_subplot(gs[row, 3]), report, key)
+        crossings[key] = draw_iou_panel(fig.add_subplot(gs[row, 2]), report, key)
     fig.suptitle(title(report), fontsize=11)
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
