@@ -15,6 +15,7 @@ from typing import Any, Mapping, Optional
 import numpy as np
 
 from tactile_common.params_file import package_config
+from tactile_common.touch_geometry import TouchGeometry
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.taxels import TaxelLayout, load_layout
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
@@ -59,9 +60,10 @@ class SimulatedFinger:
         detector = ContactDetector(layout, _dataclass_from(ContactConfig, sensor, "contact."))
         frame_rate_hz = float(sim.get("sensor_frame_rate_hz", 200.0))
         step_m = float(planner.get("approach_speed_mps", 0.02)) / frame_rate_hz
-        max_travel_m = (float(planner.get("standoff_m", 0.01)) + float(planner.get("max_depth_m", 0.02)))
+        geometry = TouchGeometry.from_params({**planner, "tip_radius_m": layout.tip_radius_m})
+        max_travel_m = geometry.approach_length_m
         path_step_m = float(planner.get("tip_speed_mps", 0.1)) / frame_rate_hz
-        back_off_m = layout.tip_radius_m + float(planner.get("standoff_m", 0.01))
+        back_off_m = geometry.pretouch_offset_m
         return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m)
 
     def approach(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, touch_index: int) -> ApproachResult:

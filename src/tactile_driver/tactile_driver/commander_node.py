@@ -27,6 +27,7 @@ from tactile_common.cycle import TouchReport
 from tactile_common.cycle_msgs import report_msg
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_common.stamps import stamp_ns, time_from_ns
+from tactile_common.touch_geometry import TouchGeometry
 from tactile_driver import arm_msgs
 from tactile_driver.commander_api import ArmCommander, CommanderConfig
 from tactile_driver.goal_inbox import GoalInbox, Verdict
@@ -51,7 +52,8 @@ PARAMS = {
     "tip_speed_mps": (_D.tip_speed_mps, "max tip speed along the free-space path", {"gt": 0.0}),
     "approach_speed_mps": (_D.approach_speed_mps, "tip speed of the guarded approach and the retract", {"gt": 0.0}),
     "standoff_m": (0.01, "pre-touch standoff from the candidate surface (the planner's value)", {"gt": 0.0}),
-    "max_depth_m": (0.02, "approach depth beyond the candidate before a free-space observation", {"gt": 0.0}),
+    "max_depth_m": (0.02, "how far the finger's skin may go beyond the estimated surface point before the "
+                    "approach counts as free space (tactile_common.touch_geometry)", {"gt": 0.0}),
     "dwell_s": (0.5, "pause at the end of the approach", {"ge": 0.0}),
     "max_joint_velocity_rad_s": (list(_D.max_joint_velocity_rad_s), "per-joint speed cap (URDF limit if lower)", {"gt": 0.0}),
     "max_joint_acceleration_rad_s2": (list(_D.max_joint_acceleration_rad_s2), "per-joint acceleration cap", {"gt": 0.0}),
@@ -86,7 +88,8 @@ class ArmCommanderNode(Node):
             self.arm = ArmCommander(self, cfg)
         except KinematicsError as exc:
             raise ValueError(str(exc)) from None
-        self.touches = TouchExecutor(self.arm, p.standoff_m + p.tip_radius_m + p.max_depth_m, p.dwell_s,
+        geometry = TouchGeometry(p.tip_radius_m, p.standoff_m, p.max_depth_m)
+        self.touches = TouchExecutor(self.arm, geometry.approach_length_m, p.dwell_s,
                                      self._publish_free_space, self._publish_done,
                                      back_off_clearance_m=p.standoff_m)
         self.inbox = GoalInbox(started_ns)

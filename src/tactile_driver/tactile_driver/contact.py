@@ -37,6 +37,8 @@ from typing import Optional
 
 import numpy as np
 
+from tactile_common.touch_geometry import back_off_target  # noqa: F401  (re-exported)
+
 from tactile_driver.taxels import TaxelLayout
 
 _SATURATED = 0xFFFF
@@ -180,19 +182,3 @@ class ContactDetector:
         std = c.std(axis=0)
         self.dead = (std == 0) | np.any(c >= _SATURATED, axis=0) | np.any(c <= 0, axis=0)
         self.noise = np.maximum(std, self.config.min_noise_counts)
-
-
-def back_off_target(contact_xyz: np.ndarray, tip_xyz: np.ndarray, distance_m: float) -> Optional[np.ndarray]:
-    """Where the tip centre goes to leave a contact: c + distance_m·(tip − c)/|tip − c| (world frame).
-
-    For a round fingertip, tip − c is the object's outward normal at the
-    contact whatever normal the detector reported, so with distance_m = tip
-    radius + clearance the skin ends ``clearance`` off the surface. None when
-    the contact is not finite or sits at the tip centre (no direction).
-    """
-    c = np.asarray(contact_xyz, dtype=float).reshape(3)
-    away = np.asarray(tip_xyz, dtype=float).reshape(3) - c
-    n = float(np.linalg.norm(away))
-    if not (np.all(np.isfinite(c)) and np.isfinite(n) and n > 1e-6):
-        return None
-    return c + distance_m * away / n
