@@ -1,9 +1,20 @@
 """``tactile-benchmark``: strategies × objects × seeds, in parallel over the cores.
 
-Writes to ``--out``: ``runs.json`` (every report), ``summary.md`` (per object
-and strategy: median travel and time to IoU 0.90/0.95, final IoU, median
-decision ms, and how many seeds reached each level), ``iou_vs_travel.png``,
-``iou_vs_time.png`` and ``gallery.png`` (final estimates over the truth).
+Objects: the built-in catalogue (``--suite builtin``, default) or the seeded
+generated suite (``--suite generated --count N --seed S``:
+:mod:`tactile_sim.generated`), or ``--objects``.
+
+Writes to ``--out``: ``runs.json`` (every report), ``summary.md``,
+``iou_vs_travel.png``, ``iou_vs_time.png`` and ``gallery.png`` (final
+estimates over the truth). ``summary.md`` has two parts, each table saying
+which IoU it shows: the **raw IoU** (against the true solid: whole suite,
+IoU at equal travel, per object) and the **reachable IoU** (against the
+finger-reachable solid, :func:`tactile_sim.metrics.reachable_inside`):
+whole suite, the default strategy's travel and time ratios against
+``uncertainty``, ``random`` and ``sequential`` (geometric mean over
+objects), per family and per object (medians over seeds) of travel and
+robot time to 0.90/0.95 and the final value, and the objects that end
+below the target.
 """
 
 from __future__ import annotations
@@ -51,9 +62,9 @@ def _median(values: list) -> Optional[float]:
 
 
 def summary_table(runs: Sequence[dict]) -> str:
-    """Markdown table: one row per object and strategy (medians over seeds)."""
-    head = ("| object | strategy | seeds | final IoU | travel to 0.90 (m) | travel to 0.95 (m) "
-            "| time to 0.95 (s) | reached 0.95 | decision (ms) | wall (s) |\n"
+    """Markdown table, raw IoU: one row per object and strategy (medians over seeds)."""
+    head = ("| object | strategy | seeds | final raw IoU | travel to raw 0.90 (m) | travel to raw 0.95 (m) "
+            "| time to raw 0.95 (s) | reached raw 0.95 | decision (ms) | wall (s) |\n"
             "|---|---|---|---|---|---|---|---|---|---|\n")
     rows = []
     for obj in sorted({r["object"] for r in runs}):
@@ -74,10 +85,10 @@ def summary_table(runs: Sequence[dict]) -> str:
 
 
 def overall_table(runs: Sequence[dict], level: str = "0.95") -> str:
-    """Per strategy over the whole suite: median travel/time to the level, counting
+    """Raw IoU, per strategy over the whole suite: median travel/time to the level, counting
     a run that never reached it at its total travel/time (a lower bound on its cost)."""
-    lines = [f"| strategy | runs | reached {level} | median travel to {level} (m)* | "
-             f"median time to {level} (s)* | median final IoU |", "|---|---|---|---|---|---|"]
+    lines = [f"| strategy | runs | reached raw {level} | median travel to raw {level} (m)* | "
+             f"median time to raw {level} (s)* | median final raw IoU |", "|---|---|---|---|---|---|"]
     for strat in sorted({r["strategy"] for r in runs}):
         sel = [r["summary"] for r in runs if r["strategy"] == strat]
         trav = [x[f"travel_to_iou_{level}_m"] if x[f"travel_to_iou_{level}_m"] is not None else x["travel_m"]
@@ -103,7 +114,7 @@ def iou_at_travel(report: dict, budget_m: float) -> float:
 def budget_table(runs: Sequence[dict], budgets_m: Sequence[float] = (1.0, 1.5, 2.0, 3.0)) -> str:
     """Median IoU per strategy at equal travel budgets: the claim in one table
     (a run whose touch budget ended before a travel budget keeps its final IoU)."""
-    lines = ["| strategy | " + " | ".join(f"IoU at {b:g} m" for b in budgets_m) + " | median travel of the run (m) |",
+    lines = ["| strategy | " + " | ".join(f"raw IoU at {b:g} m" for b in budgets_m) + " | median travel of the run (m) |",
              "|---|" + "---|" * (len(budgets_m) + 1)]
     for strat in sorted({r["strategy"] for r in runs}):
         sel = [r for r in runs if r["strategy"] == strat]
@@ -112,13 +123,175 @@ def budget_table(runs: Sequence[dict], budgets_m: Sequence[float] = (1.0, 1.5, 2
     return "\n".join(lines) + "\n"
 
 
+# -- reachable IoU tables ----------------------------------------------------------
+#: The strategy the ratios are taken for, and those it is compared with.
+DEFAULT_STRATEGY = "proposed"
+BASELINES = ("uncertainty", "random", "sequential")
+TARGET_IOU = 0.95
+_LEVELS = ("0.90", "0.95")
+
+
+def family_of(name: str) -> str:
+    """A generated object's family (``gen2d-017-letter_H`` → ``letter_H``); ``builtin`` otherwise."""
+    from tactile_sim.generated import is_generated_name, parse_name
+
+    return parse_name(name)[3] if is_generated_name(name) else "builtin"
+
+
+def has_reachable(runs: Sequence[dict]) -> bool:
+    """Whether the runs carry the reachable IoU (runs.json files written before it do not)."""
+    return any(r["summary"].get("final_iou_reachable") is not None for r in runs)
+
+
+def _cost(summary: dict, what: str, level: str) -> tuple[float, bool]:
+    """(travel [m] or time [s] to reachable IoU ``level``, reached?); a run that never
+    reached it counts with its whole travel/time (a lower bound of its cost)."""
+    unit = "m" if what == "travel" else "s"
+    v = summary.get(f"{what}_to_iou_reachable_{level}_{unit}")
+    return (float(v), True) if v is not None else (float(summary[f"{what}_{unit}"]), False)
+
+
+def _per_object(runs: Sequence[dict]) -> dict:
+    """{(object, strategy): medians over seeds of the reachable-IoU costs} (censored, see _cost)."""
+    out: dict = {}
+    for key in sorted({(r["object"], r["strategy"]) for r in runs}):
+        sel = [r["summary"] for r in runs if (r["object"], r["strategy"]) == key]
+        row = {"seeds": len(sel), "final": _median([x.get("final_iou_reachable") for x in sel])}
+        for what in ("travel", "time"):
+            for level in _LEVELS:
+                vals = [_cost(x, what, level) for x in sel]
+                row[(what, level)] = float(np.median([v for v, _ in vals]))
+                row[(what, level, "reached")] = sum(ok for _, ok in vals)
+                # The median run reached the level when more than half the seeds did.
+                row[(what, level, "median_reached")] = 2 * row[(what, level, "reached")] > len(sel)
+        out[key] = row
+    return out
+
+
+def _cell(row: dict, what: str, level: str, digits: int) -> str:
+    v = row[(what, level)]
+    return f"{v:.{digits}f}" if row[(what, level, "median_reached")] else f"≥{v:.{digits}f}"
+
+
+def reachable_overall_table(runs: Sequence[dict]) -> str:
+    """Reachable IoU, per strategy over the whole suite (censored medians over runs)."""
+    lines = ["| strategy | runs | reached reach. 0.90 | reached reach. 0.95 | travel to reach. 0.95 (m)* "
+             "| time to reach. 0.95 (s)* | median final reachable IoU |", "|---|---|---|---|---|---|---|"]
+    for strat in sorted({r["strategy"] for r in runs}):
+        sel = [r["summary"] for r in runs if r["strategy"] == strat]
+        n90 = sum(_cost(x, "travel", "0.90")[1] for x in sel)
+        n95 = sum(_cost(x, "travel", "0.95")[1] for x in sel)
+        trav = np.median([_cost(x, "travel", "0.95")[0] for x in sel])
+        tim = np.median([_cost(x, "time", "0.95")[0] for x in sel])
+        lines.append(f"| {strat} | {len(sel)} | {n90}/{len(sel)} | {n95}/{len(sel)} | {trav:.2f} | {tim:.0f} "
+                     f"| {_fmt(_median([x.get('final_iou_reachable') for x in sel]), 3)} |")
+    return "\n".join(lines) + "\n"
+
+
+def ratio_table(runs: Sequence[dict], default: str = DEFAULT_STRATEGY, baselines: Sequence[str] = BASELINES) -> str:
+    """Reachable IoU: the default strategy's cost over each baseline's, geometric mean over objects.
+
+    Per object the ratio of the medians over seeds (censored, see :func:`_cost`):
+    < 1 means the default strategy needs less. "both reached" keeps only the
+    objects where both median runs reached the level (an uncensored ratio).
+    """
+    per = _per_object(runs)
+    objects = sorted({o for o, _ in per})
+    lines = [f"| {default} vs | travel to reach. 0.90 | travel to reach. 0.95 | time to reach. 0.90 "
+             "| time to reach. 0.95 | objects (both reached 0.90 / 0.95) | travel 0.95, both reached |",
+             "|---|---|---|---|---|---|---|"]
+    for base in baselines:
+        pairs = [(per[(o, default)], per[(o, base)]) for o in objects if (o, default) in per and (o, base) in per]
+        if not pairs:
+            continue
+        cells = []
+        for what, level in (("travel", "0.90"), ("travel", "0.95"), ("time", "0.90"), ("time", "0.95")):
+            cells.append(f"{_geomean([a[(what, level)] / b[(what, level)] for a, b in pairs]):.2f}")
+        both = {lv: [(a, b) for a, b in pairs if a[("travel", lv, "median_reached")] and b[("travel", lv, "median_reached")]]
+                for lv in _LEVELS}
+        strict = both["0.95"]
+        strict_txt = f"{_geomean([a[('travel', '0.95')] / b[('travel', '0.95')] for a, b in strict]):.2f}" if strict else "—"
+        lines.append(f"| {base} | " + " | ".join(cells)
+                     + f" | {len(pairs)} ({len(both['0.90'])} / {len(strict)}) | {strict_txt} |")
+    return ("\n".join(lines) + "\n\nRatios < 1: the default strategy needs less travel/time. Runs that never reached "
+            "the level count with their whole travel/time (a lower bound of their cost).\n")
+
+
+def _geomean(values: Sequence[float]) -> float:
+    v = np.asarray([x for x in values if x > 0], dtype=float)
+    return float(np.exp(np.mean(np.log(v)))) if len(v) else float("nan")
+
+
+def family_table(runs: Sequence[dict]) -> str:
+    """Reachable IoU, per family and strategy: medians over objects of the per-object medians."""
+    per = _per_object(runs)
+    lines = ["| family | strategy | objects | travel to reach. 0.90 (m)* | travel to reach. 0.95 (m)* "
+             "| time to reach. 0.90 (s)* | time to reach. 0.95 (s)* | objects reaching 0.95 | final reachable IoU |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    fams = sorted({family_of(o) for o, _ in per})
+    for fam in fams:
+        for strat in sorted({st for _, st in per}):
+            rows = [v for (o, st), v in per.items() if st == strat and family_of(o) == fam]
+            if not rows:
+                continue
+            med = {k: float(np.median([r[k] for r in rows])) for k in
+                   [("travel", "0.90"), ("travel", "0.95"), ("time", "0.90"), ("time", "0.95")]}
+            n95 = sum(r[("travel", "0.95", "median_reached")] for r in rows)
+            lines.append(f"| {fam} | {strat} | {len(rows)} | {med[('travel', '0.90')]:.2f} | {med[('travel', '0.95')]:.2f} "
+                         f"| {med[('time', '0.90')]:.0f} | {med[('time', '0.95')]:.0f} | {n95}/{len(rows)} "
+                         f"| {_fmt(_median([r['final'] for r in rows]), 3)} |")
+    return "\n".join(lines) + "\n"
+
+
+def reachable_object_table(runs: Sequence[dict]) -> str:
+    """Reachable IoU, per object and strategy (medians over seeds; "≥": the median run did not reach)."""
+    per = _per_object(runs)
+    lines = ["| object | family | strategy | seeds | final reachable IoU | travel to reach. 0.90 (m) "
+             "| travel to reach. 0.95 (m) | time to reach. 0.90 (s) | time to reach. 0.95 (s) | reached reach. 0.95 |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for (obj, strat), row in per.items():
+        lines.append(f"| {obj} | {family_of(obj)} | {strat} | {row['seeds']} | {_fmt(row['final'], 3)} "
+                     f"| {_cell(row, 'travel', '0.90', 2)} | {_cell(row, 'travel', '0.95', 2)} "
+                     f"| {_cell(row, 'time', '0.90', 0)} | {_cell(row, 'time', '0.95', 0)} "
+                     f"| {row[('travel', '0.95', 'reached')]}/{row['seeds']} |")
+    return "\n".join(lines) + "\n"
+
+
+def below_target(runs: Sequence[dict], target: float = TARGET_IOU) -> str:
+    """Objects whose median final reachable IoU ends below ``target``, per strategy (worst first)."""
+    per = _per_object(runs)
+    lines = []
+    for strat in sorted({st for _, st in per}):
+        low = sorted(((row["final"], o) for (o, st), row in per.items()
+                      if st == strat and row["final"] is not None and row["final"] < target))
+        txt = ", ".join(f"{o} ({v:.3f})" for v, o in low) if low else "none"
+        lines.append(f"- **{strat}** ({len(low)} of {sum(st == strat for _, st in per)}): {txt}")
+    return "\n".join(lines) + "\n"
+
+
+def reachable_sections(runs: Sequence[dict]) -> str:
+    """The reachable-IoU part of summary.md (empty note for runs without it)."""
+    if not has_reachable(runs):
+        return "## Reachable IoU\n\nThese runs carry no reachable IoU (written before it existed).\n"
+    return (f"## Reachable IoU: whole suite\n\nIoU against the finger-reachable solid (the true solid closed by "
+            f"a ball of the tip radius; in 3D counted above the lowest tip-centre height).\n\n"
+            f"{reachable_overall_table(runs)}\n*censored: a run that never reached the level counts with its "
+            f"whole travel/time.\n\n"
+            f"### Reachable IoU: {DEFAULT_STRATEGY} against the baselines (geometric mean over objects)\n\n"
+            f"{ratio_table(runs)}\n"
+            f"### Reachable IoU: per family (medians over objects of the medians over seeds)\n\n{family_table(runs)}\n"
+            f"### Objects ending below reachable IoU {TARGET_IOU:.2f} (median over seeds)\n\n{below_target(runs)}\n"
+            f"### Reachable IoU: per object (medians over seeds)\n\n{reachable_object_table(runs)}")
+
+
 def write_summary(runs: Sequence[dict], out: Path, mode: str, shapes: Sequence = ()) -> str:
     """summary.md and the figures of a set of runs; the Markdown text."""
     touches = max(len(r["touches"]) for r in runs)
     seeds = len({r["seed"] for r in runs})
     md = (f"# Strategy benchmark ({mode}, up to {touches} touches, {seeds} seeds)\n\n"
-          f"## Whole suite\n\n{overall_table(runs)}\n### IoU at equal travel\n\n{budget_table(runs)}\n"
-          f"## Per object (medians over seeds)\n\n{summary_table(runs)}")
+          f"## Whole suite (raw IoU)\n\n{overall_table(runs)}\n### Raw IoU at equal travel\n\n{budget_table(runs)}\n"
+          f"{reachable_sections(runs)}\n"
+          f"## Per object (raw IoU, medians over seeds)\n\n{summary_table(runs)}")
     (out / "summary.md").write_text(md)
     plots.plot_strategies(runs, out / "iou_vs_travel.png", "travel_m")
     plots.plot_strategies(runs, out / "iou_vs_time.png", "time_s")
@@ -131,10 +304,35 @@ def _fmt(v: Optional[float], digits: int) -> str:
     return "—" if v is None else f"{v:.{digits}f}"
 
 
+def suite_objects(mode: str, suite: str = "builtin", count: Optional[int] = None, seed: int = 0) -> list[str]:
+    """The object names of a suite: the built-in catalogue or the first ``count`` generated objects."""
+    from tactile_sim import generated
+    from tactile_sim.objects import list_objects
+
+    if suite == "builtin":
+        return list_objects(mode)
+    if suite != "generated":
+        raise ValueError(f"--suite {suite}: must be builtin or generated")
+    if count is None:
+        count = 3 * len(generated.FAMILIES_2D if mode == "2d" else generated.FAMILIES_3D)
+    if count < 1:
+        raise ValueError(f"--count {count}: must be ≥ 1")
+    if seed < 0:
+        raise ValueError(f"--seed {seed}: must be ≥ 0")
+    return generated.suite_names(mode, int(count), int(seed))
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = Parser(prog="tactile-benchmark", description=__doc__.splitlines()[0])
     add_experiment_args(parser, several=True)
-    parser.add_argument("--objects", default=None, help="comma-separated objects (default: all built-in)")
+    parser.add_argument("--objects", default=None,
+                        help="comma-separated objects (default: every object of --suite)")
+    parser.add_argument("--suite", choices=("builtin", "generated"), default="builtin",
+                        help="builtin: the catalogue (default); generated: the seeded suite of tactile_sim.generated")
+    parser.add_argument("--count", type=integer, default=None,
+                        help="objects of the generated suite, ≥ 1 (default 33 in 2D, 30 in 3D: every family 3 times)")
+    parser.add_argument("--seed", type=integer, default=0,
+                        help="seed of the generated suite, ≥ 0 (default 0; the same seed gives the same objects)")
     parser.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
     parser.add_argument("--seeds", type=integer, default=5, help="seeds 0..N-1, N ≥ 1 (default 5)")
     parser.add_argument("--jobs", type=integer, default=os.cpu_count() or 1, help="parallel runs ≥ 1 (default: cores)")
@@ -151,9 +349,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             args.out.mkdir(parents=True, exist_ok=True)
             print(write_summary(runs, args.out, runs[0]["mode"]))
             return 0
-        from tactile_sim.objects import list_objects
-
-        objects = args.objects.split(",") if args.objects else list_objects(args.mode)
+        objects = args.objects.split(",") if args.objects else suite_objects(args.mode, args.suite, args.count, args.seed)
         strategies = args.strategies.split(",")
         _check_args(args, objects, strategies)
         touches = args.touches
