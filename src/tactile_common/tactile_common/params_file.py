@@ -94,7 +94,7 @@ def package_config(package: str, filename: str) -> Path:
             path = Path(get_package_share_directory(package)) / "config" / filename
             if path.exists():
                 return path
-        except (PackageNotFoundError, KeyError, ValueError):
+        except (PackageNotFoundError, KeyError, ValueError, OSError):  # OSError: no AMENT_PREFIX_PATH
             pass
     except ImportError:  # pragma: no cover - ament_index_python ships with rclpy
         pass
