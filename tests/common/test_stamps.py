@@ -5,7 +5,7 @@ from decimal import Decimal
 import pytest
 from builtin_interfaces.msg import Duration, Time
 
-from tactile_common.stamps import (duration_from_ns, duration_from_s, stamp_ns, stamp_s, time_from_ns,
+from tactile_common.stamps import (duration_from_ns, duration_from_s, ns_from_s, stamp_ns, stamp_s, time_from_ns,
                                    time_from_s)
 
 SECONDS = [0.0, 1e-9, 0.5, 0.9999999999, 1.0000000004, 12.345678901, 1_700_000_000.123456, -0.25]
@@ -22,6 +22,7 @@ def test_from_seconds_rounds_to_the_nearest_nanosecond_and_normalises(t_s):
         assert 0 <= msg.nanosec < 10**9
         assert msg.sec * 10**9 + msg.nanosec == _exact_ns(t_s)
     assert isinstance(time_from_s(t_s), Time) and isinstance(duration_from_s(t_s), Duration)
+    assert ns_from_s(t_s) == _exact_ns(t_s)
 
 
 def test_a_second_is_not_lost_to_rounding():

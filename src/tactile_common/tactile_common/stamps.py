@@ -28,7 +28,8 @@ def _split_ns(ns: int) -> tuple[int, int]:
     return divmod(int(ns), NS_PER_S)
 
 
-def _ns_of_s(t_s: float) -> int:
+def ns_from_s(t_s: float) -> int:
+    """Integer nanoseconds of ``t_s`` seconds (nearest; exact for epoch-sized times)."""
     if not math.isfinite(t_s):
         raise ValueError(f"time must be a finite number of seconds; got {t_s}")
     sec = math.floor(t_s)  # t_s − sec is exact: no precision lost at epoch-sized times
@@ -43,7 +44,7 @@ def time_from_ns(ns: int) -> Time:
 
 def time_from_s(t_s: float) -> Time:
     """A Time message of ``t_s`` seconds (nearest nanosecond)."""
-    return time_from_ns(_ns_of_s(t_s))
+    return time_from_ns(ns_from_s(t_s))
 
 
 def duration_from_ns(ns: int) -> Duration:
@@ -54,4 +55,4 @@ def duration_from_ns(ns: int) -> Duration:
 
 def duration_from_s(t_s: float) -> Duration:
     """A Duration message of ``t_s`` seconds (nearest nanosecond)."""
-    return duration_from_ns(_ns_of_s(t_s))
+    return duration_from_ns(ns_from_s(t_s))
