@@ -95,6 +95,8 @@ def check_cli(option: str, value: Any) -> Optional[str]:
     if msg is None:
         return None
     reason = msg.split(": ", 1)[1]
+    if s.rule.choices is not None and value not in s.rule.choices:
+        reason = f"unknown {name}; {reason}"
     return f"{option} {value}: {reason} ({node}.{name})"
 
 
