@@ -52,10 +52,12 @@ def test_goal_and_path_for_a_request(ros_graph):
     pub_req.publish(request_msg(PlanRequest(request_id=7, min_map_stamp_ns=5_000_000_000)))
     old = sphere_map(64, 2, radius_m=OLD_RADIUS, seed=3)
     pub_map.publish(to_pointcloud2(old, "world", stamp=Time(sec=1)))  # too old
-    pub_tip.publish(tip)
     ros_graph.wait_for(lambda: pub_map.get_subscription_count() > 0, 20, "map subscription")
-    # delivered before the valid map replaces it in the latched history (depth 1)
-    assert pub_map.wait_for_all_acked(Duration(seconds=20))
+    # The request and the too-old map delivered (the map before the valid one replaces it in the
+    # latched history, depth 1) and tip poses flowing: everything but a new-enough map. No goal.
+    assert pub_req.wait_for_all_acked(Duration(seconds=20)) and pub_map.wait_for_all_acked(Duration(seconds=20))
+    node.create_timer(0.05, lambda: pub_tip.publish(tip))
+    ros_graph.observe(1.0, "no goal on a too-old map")
     assert not goals
     pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=5)))
 
