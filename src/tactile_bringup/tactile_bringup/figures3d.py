@@ -4,7 +4,7 @@ Top row, three viewpoints of the world frame (metres): the estimated surface
 (μ = 0, marching tetrahedra on the estimator's lattice) coloured by log10 σ
 of the posterior at each triangle, lightly shaded; the true surface as a
 ghost of horizontal contour rings (marching squares of the true SDF at
-evenly spaced heights); each touch's followed path and approach coloured by
+evenly spaced heights; the top view shows the lowest ring, the footprint); each touch's followed path and approach coloured by
 its order, contacts with their normals, free-space probe ends. Bottom row:
 IoU against travel and against robot time.
 
@@ -95,12 +95,16 @@ def plot_progress_3d(report: dict, path, estimator=None, obj=None, estimate_xyz=
     for col, (elev, azim, name) in enumerate(VIEWS):
         ax = fig.add_subplot(gs[0, col], projection="3d", computed_zorder=False)
         if len(tri):
-            ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors="none", alpha=0.9),
+            # edges in the face colour: no light seams between the triangles (antialiasing)
+            ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors=colours, linewidths=0.3),
                                 autolim=False)
         elif estimate_xyz is not None and len(estimate_xyz):
             ax.scatter(*np.asarray(estimate_xyz).T, s=1, c="tab:blue")
-        for seg in rings:
-            ax.add_collection3d(Line3DCollection(seg, colors="k", linewidths=0.7, alpha=0.55), autolim=False)
+        top = elev >= 89.0
+        # looking down, every ring would show through the estimate: the footprint only
+        for seg in (rings[:1] if top else rings):
+            ax.add_collection3d(Line3DCollection(seg, colors="k", linewidths=1.0 if top else 0.7,
+                                                 alpha=0.8 if top else 0.55), autolim=False)
         if not rings and truth_xyz is not None and len(truth_xyz):
             ax.scatter(*np.asarray(truth_xyz)[::5].T, s=0.5, c="0.4", alpha=0.4)
         _draw_touches(ax, geo)
@@ -114,7 +118,7 @@ def plot_progress_3d(report: dict, path, estimator=None, obj=None, estimate_xyz=
         ax.set_ylabel("y (m)", fontsize=8)
         ax.set_zlabel("z (m)", fontsize=8)
         ax.tick_params(labelsize=6)
-        if elev >= 89.0:  # looking down: z is the depth
+        if top:  # looking down: z is the depth
             ax.set_zticks([])
             ax.set_zlabel("")
         if col == 0:
@@ -160,7 +164,7 @@ def _draw_touches(ax, geo) -> None:
             segs.append(np.stack([g.path_xyz[-1], g.point_xyz]))
             seg_c.append(c)
     if segs:
-        ax.add_collection3d(Line3DCollection(segs, colors=seg_c, linewidths=0.8, alpha=0.8), autolim=False,
+        ax.add_collection3d(Line3DCollection(segs, colors=seg_c, linewidths=0.7, alpha=0.6), autolim=False,
                             axlim_clip=True)
     con = [(g, c) for g, c in zip(geo, colour) if g.contact]
     free = [(g, c) for g, c in zip(geo, colour) if not g.contact]
