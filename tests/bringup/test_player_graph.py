@@ -10,7 +10,7 @@ from sensor_msgs.msg import PointCloud2
 from geometry_msgs.msg import PoseStamped
 from std_msgs.msg import String
 
-from tactile_common import qos
+from tactile_common import qos, topics
 from tactile_common.stamps import stamp_ns
 from tactile_common.testing import DomainLease, RosGraph
 
@@ -46,7 +46,7 @@ def test_replay_delivers_every_message_in_order(ros_graph, fresh_graph, tmp_path
 
     poses = fresh_graph.collect("/pose", PoseStamped, qos.EVENTS, raw=True)
     clouds = fresh_graph.collect("/cloud", PointCloud2, qos.EVENTS, raw=True)
-    clocks = fresh_graph.collect("/clock", Clock, qos.CLOCK)
+    clocks = fresh_graph.collect(topics.CLOCK, Clock, qos.CLOCK)
     fresh_graph.start("player", [
         "player", "--ros-args", "-p", f"bag:={path}", "-p", "rate:=2.0", "-p", "clock:=true",
         "-p", "topics:=['/pose', '/cloud', '/latched_note']", "-p", "wait_for_subscribers_s:=10.0",
