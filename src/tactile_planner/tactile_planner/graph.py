@@ -1,12 +1,26 @@
 """Free-space lattice graph around the estimated object (world frame, metres).
 
-A lattice node is free when the GP mean (≈ signed distance, metres) is at least
-``margin_m`` (optionally also P(inside) = Φ(−μ/σ) ≤ ``p_inside_max``), in 3D
-when its height is at least ``min_z_m``, and with ``shell_m > 0`` when μ ≤
-margin + shell (a band/shell around the surface: the graph grows with the
-surface, not the workspace). Edges join 8 (2D) / 26 (3D) neighbours and exist only when every
-lattice node of the box spanned by the edge is free, so the multilinear
-interpolation of μ along an edge never drops below the margin.
+Clearance c(x) of the tip centre from the estimated object, on the lattice:
+
+- ``clearance="distance"`` (the planner's default): the signed Euclidean
+  distance to the estimated surface, the zero level set of the GP mean μ
+  (|c| = distance to the nearest zero crossing of μ on a lattice edge, found
+  by linear interpolation; sign of μ). Exact up to O(h²/d) for lattice step h
+  at distance d (≤ 0.1 mm at 15 mm on a 2.4 mm lattice).
+- ``clearance="mean"``: μ itself. μ is a signed distance only where
+  |∇μ| ≈ 1, i.e. near contacts with normals; where the estimate is uncertain
+  the GP mean is flatter (|∇μ| < 1) and μ underestimates the distance, so a
+  pre-touch point placed at a fixed distance along the normal falls inside
+  the margin exactly on the parts of the surface the estimate has not
+  confirmed (docs/exploration.md, "Why the planner stalled").
+
+A lattice node is free when c ≥ ``margin_m`` (optionally also P(inside) =
+Φ(−μ/σ) ≤ ``p_inside_max``), in 3D when its height is at least ``min_z_m``,
+and with ``shell_m > 0`` when c ≤ margin + shell (a band/shell around the
+surface: the graph grows with the surface, not the workspace). Edges join 8
+(2D) / 26 (3D) neighbours and exist only when every lattice node of the box
+spanned by the edge is free, so the multilinear interpolation of c along an
+edge never drops below the margin.
 """
 
 from __future__ import annotations
@@ -17,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.interpolate import RegularGridInterpolator
+from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
 from .maps import MapLattice
@@ -34,6 +49,7 @@ class FreeSpaceGraph:
         xyz: (N, 3) node positions (m).
         length_m: symmetric CSR (N, N) of edge lengths (m).
         margin_m: the clearance every node keeps from the estimated surface.
+        clearance_field_m: the clearance c on the lattice (lattice shape, m; see the module docstring).
     """
 
     lattice: MapLattice
@@ -44,6 +60,7 @@ class FreeSpaceGraph:
     length_m: sp.csr_matrix
     margin_m: float
     min_z_m: float
+    clearance_field_m: np.ndarray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -86,11 +103,12 @@ class FreeSpaceGraph:
         return best, bd
 
     def clearance_m(self, p_xyz: np.ndarray) -> np.ndarray:
-        """Multilinear interpolation of μ at points (+inf outside the lattice: the object lies
-        inside the estimator's workspace box; −inf below min z in 3D)."""
+        """Multilinear interpolation of the clearance c at points (+inf outside the lattice: the
+        object lies inside the estimator's workspace box; −inf below min z in 3D)."""
         lat = self.lattice
         p = np.asarray(p_xyz, float).reshape(-1, 3)
-        interp = RegularGridInterpolator(lat.axes, lat.mean_m, bounds_error=False, fill_value=np.inf)
+        field = lat.mean_m if self.clearance_field_m is None else self.clearance_field_m
+        interp = RegularGridInterpolator(lat.axes, field, bounds_error=False, fill_value=np.inf)
         mu = interp(p[:, : lat.dim])
         if lat.dim == 3:
             mu = np.where(p[:, 2] >= self.min_z_m - 1e-12, mu, -np.inf)
@@ -108,6 +126,38 @@ class FreeSpaceGraph:
         return np.all(mu >= self.margin_m - 1e-9, axis=1)
 
 
+CLEARANCES = ("distance", "mean")
+
+
+def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray:
+    """Signed distance (lattice shape, m; < 0 inside) from each lattice node to the zero level
+    set of the lattice mean: the nearest zero crossing of μ on an axis edge (linear
+    interpolation), sign of μ. Nodes farther than ``max_m`` (or all, when μ has no zero
+    crossing) get ±``max_m``: finite, so that the field interpolates."""
+    mu = lattice.mean_m
+    pts = []
+    for k, ax in enumerate(lattice.axes):
+        a = [slice(None)] * lattice.dim
+        b = [slice(None)] * lattice.dim
+        a[k], b[k] = slice(None, -1), slice(1, None)
+        fa, fb = mu[tuple(a)], mu[tuple(b)]
+        cross = (fa < 0) != (fb < 0)
+        if not cross.any():
+            continue
+        idx = np.nonzero(cross)
+        t = fa[idx] / (fa[idx] - fb[idx])
+        coords = [lattice.axes[j][idx[j]] for j in range(lattice.dim)]
+        coords[k] = coords[k] + t * (ax[1] - ax[0])
+        pts.append(np.stack(coords, axis=1))
+    sign = np.where(mu < 0, -1.0, 1.0)
+    if not pts:
+        return sign * max_m
+    tree = cKDTree(np.concatenate(pts))
+    grid = lattice.grid_xyz()[:, : lattice.dim]
+    d, _ = tree.query(grid, distance_upper_bound=max_m)
+    return sign * np.minimum(d, max_m).reshape(mu.shape)
+
+
 def _view(padded: np.ndarray, off: tuple, shape: tuple) -> np.ndarray:
     """``padded`` (padded by 1) shifted by ``off``: value at lattice index a + off."""
     return padded[tuple(slice(1 + o, 1 + o + n) for o, n in zip(off, shape))]
@@ -119,6 +169,7 @@ def build_free_graph(
     shell_m: float = 0.0,
     min_z_m: float = -np.inf,
     p_inside_max: float | None = None,
+    clearance: str = "mean",
 ) -> FreeSpaceGraph:
     """Free-space graph of a lattice (see the module docstring for the rules).
 
@@ -128,16 +179,25 @@ def build_free_graph(
         shell_m: keep only nodes with μ ≤ margin + shell (0 = all free space).
         min_z_m: 3D only: lowest allowed node height (table + margin + tip radius).
         p_inside_max: if set, also drop nodes with Φ(−μ/σ) above it.
+        clearance: 'distance' (to the estimated surface) or 'mean' (μ); see the module docstring.
     """
     mu = lattice.mean_m
-    free = mu >= margin_m
+    if clearance == "distance":
+        # beyond margin + shell a node's exact distance does not matter (free, or outside the band)
+        reach = margin_m + shell_m if shell_m > 0 else margin_m
+        cl = surface_distance_m(lattice, max_m=reach + 2.0 * float(np.max(lattice.spacing_m)))
+    elif clearance == "mean":
+        cl = mu
+    else:
+        raise ValueError(f"clearance must be one of {CLEARANCES}, got '{clearance}'")
+    free = cl >= margin_m
     if p_inside_max is not None:
         sigma = np.sqrt(np.maximum(lattice.variance_m2, 1e-300))
         free &= ndtr(-mu / sigma) <= p_inside_max
     if lattice.dim == 3:
         free &= (lattice.axes[2] >= min_z_m)[None, None, :]
     if shell_m > 0:
-        free &= mu <= margin_m + shell_m
+        free &= cl <= margin_m + shell_m
     shape = lattice.shape
     d = lattice.dim
     node_of_grid = np.full(free.size, -1, dtype=np.int64)
@@ -171,4 +231,5 @@ def build_free_graph(
         lattice=lattice, free=free, node_of_grid=node_of_grid, grid_of_node=grid_of_node,
         xyz=xyz, length_m=length, margin_m=float(margin_m),
         min_z_m=float(min_z_m) if lattice.dim == 3 else -np.inf,
+        clearance_field_m=None if clearance == "mean" else cl,
     )

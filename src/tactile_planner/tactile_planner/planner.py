@@ -20,7 +20,9 @@ from typing import Any, Mapping
 import numpy as np
 import scipy.sparse.csgraph as csg
 
-from .graph import FreeSpaceGraph, build_free_graph
+from tactile_common.touch_geometry import MotionModel, TouchGeometry
+
+from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
 from .paths import path_length_m, shortcut
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
@@ -41,8 +43,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "cg_max_rate_nats": (3.0, "numerics with CG (3D): rate × graph bounding-box diagonal ≤ this, so every cost stays within CG's accuracy", {"gt": 0.0}),
     "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients", {"gt": 0.0, "lt": 1.0}),
     "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)", {"ge": 1}),
-    "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with mean ≤ margin + shell (0 = all free space)", {"ge": 0.0}),
-    "margin_m": (0.015, "minimum GP mean (≈ distance from the estimated surface) of the tip centre on paths", {"gt": 0.0}),
+    "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with clearance ≤ margin + shell (0 = all free space)", {"ge": 0.0}),
+    "margin_m": (0.015, "minimum clearance of the tip centre from the estimated surface on paths", {"gt": 0.0}),
+    "clearance": ("distance", "clearance measure: 'distance' (Euclidean, to the zero level set of the mean) or "
+                              "'mean' (the GP mean μ, a distance only where |∇μ| ≈ 1)", {"choices": CLEARANCES}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -58,6 +62,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid", {"ge": 0.0}),
     "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update", {"gt": 0.0}),
     "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),
+    "known_var_m2": (0.0, "info_gain, info_travel: variance at or below which the surface counts as known "
+                          "(only the excess σ² − this is information)", {"ge": 0.0}),
+    "known_tolerance_m": (0.0, "info_travel: the surface counts as known where P(|f| > this) is small", {"ge": 0.0}),
     "smooth_path": (True, "shortcut the lattice path (never entering the margin)"),
 }
 
@@ -112,6 +119,8 @@ class TouchPlanner:
             raise ValueError(f"mode must be '2d' or '3d', got '{p['mode']}'")
         if p["strategy"] not in STRATEGIES:
             raise ValueError(f"strategy must be one of {STRATEGIES}, got '{p['strategy']}'")
+        if p["clearance"] not in CLEARANCES:
+            raise ValueError(f"clearance must be one of {CLEARANCES}, got '{p['clearance']}'")
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
@@ -133,6 +142,8 @@ class TouchPlanner:
             sequential_step_rad=float(p["sequential_step_rad"]),
             info_gain_length_scale_m=float(p["info_gain_length_scale_m"]),
             info_gain_noise_var_m2=float(p["info_gain_noise_var_m2"]),
+            known_var_m2=float(p["known_var_m2"]),
+            known_tolerance_m=float(p["known_tolerance_m"]),
         )
         self.last_graph: FreeSpaceGraph | None = None
         #: Targets chosen so far. Touching a place again teaches nothing when the
@@ -196,22 +207,26 @@ class TouchPlanner:
         if dim == 2:
             target[:, 2] = lattice.plane_z_m
             tip = np.array([tip[0], tip[1], lattice.plane_z_m])
-        pretouch = target + (float(p["standoff_m"]) + float(p["tip_radius_m"])) * normal
+        pretouch = TouchGeometry.from_params(p).pretouch_xyz(target, normal)
 
-        excluded = np.zeros(m, bool)
+        # why a candidate cannot be chosen, by reason (a candidate may have several)
+        why: dict[str, np.ndarray] = {}
         if excluded_targets is not None and len(np.asarray(excluded_targets).reshape(-1)):
             ex = np.asarray(excluded_targets, float).reshape(-1, 3)
             d = np.linalg.norm(target[:, None, :dim] - ex[None, :, :dim], axis=2)
-            excluded = np.any(d <= float(p["exclude_radius_m"]), axis=1)
+            why["near a target reported unreachable"] = np.any(d <= float(p["exclude_radius_m"]), axis=1)
         if self.visited and float(p["revisit_radius_m"]) > 0:
             d = np.linalg.norm(target[:, None, :dim] - np.asarray(self.visited)[None, :, :dim], axis=2)
-            excluded |= np.any(d <= float(p["revisit_radius_m"]), axis=1)
+            why["already targeted"] = np.any(d <= float(p["revisit_radius_m"]), axis=1)
         if dim == 3:
-            excluded |= normal[:, 2] < float(p["min_normal_z"])
+            why["facing down"] = normal[:, 2] < float(p["min_normal_z"])
+        excluded = np.zeros(m, bool)
+        for mask in why.values():
+            excluded |= mask
 
         p_in = float(p["p_inside_max"])
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
-                                 float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None)
+                                 float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]))
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:
@@ -222,29 +237,36 @@ class TouchPlanner:
         snapped = not bool(graph.segments_free(tip[None], graph.xyz[start][None])[0])
         term_node, term_len = graph.attach(pretouch, int(p["attach_reach"]))
         _, comp = csg.connected_components(graph.length_m, directed=False)
-        reachable = valid & ~excluded & (term_node >= 0)
-        reachable &= np.where(term_node >= 0, comp[np.maximum(term_node, 0)] == comp[start], False)
+        why["invalid"] = ~valid
+        why["no free pre-touch point"] = term_node < 0
+        other = np.where(term_node >= 0, comp[np.maximum(term_node, 0)] != comp[start], False)
+        why["in another free-space component than the tip"] = other
+        reachable = valid & ~excluded & (term_node >= 0) & ~other
         if reachable.any():
-            ends_ok = graph.segments_free(graph.xyz[np.maximum(term_node, 0)], pretouch)
-            reachable &= ends_ok
+            why["last segment not free"] = reachable & ~graph.segments_free(
+                graph.xyz[np.maximum(term_node, 0)], pretouch)
+            reachable &= ~why["last segment not free"]
         base.update(start_snapped=snapped)
         snap_msg = " (tip inside the margin or blocked: snapped to the nearest free node)" if snapped else ""
         if not reachable.any():
+            reasons = ", ".join(f"{int(v.sum())} {k}" for k, v in why.items() if v.any())
             return PlanResult("all_unreachable",
-                              f"all {m} candidates are unreachable or excluded "
-                              f"({int(excluded.sum())} excluded, {int((~valid).sum())} invalid){snap_msg}",
+                              f"all {m} candidates are unreachable or excluded ({int(excluded.sum())} excluded; "
+                              f"{reasons}){snap_msg}",
                               n_unreachable=int(m - excluded.sum()), **base)
         # the motion-model time (travel length) is needed by the time-based scores only
-        needs_time = p["strategy"] == "info_gain" or (p["strategy"] == "proposed" and p["score_form"] == "ratio")
+        needs_time = p["strategy"] in ("info_gain", "info_travel") or (
+            p["strategy"] == "proposed" and p["score_form"] == "ratio")
         sol = self.backend.solve(graph, start, term_node, term_len, reachable, want_travel_m=needs_time)
         reachable &= np.isfinite(sol.cost)
         if not reachable.any():
             return PlanResult("all_unreachable", f"no candidate has a finite travel cost{snap_msg}",
                               n_unreachable=int(m - excluded.sum()), **base)
-        time_s = (sol.travel_m / float(p["tip_speed_mps"])
-                  + 2.0 * float(p["standoff_m"]) / float(p["approach_speed_mps"]) + float(p["dwell_s"]))
+        # expected touch: contact after the standoff, the same back (tactile_common.touch_geometry)
+        time_s = MotionModel.from_params(p).touch_time_s(sol.travel_m, float(p["standoff_m"]))
         ctx = SelectionContext(xyz=target, variance_m2=cands.variance_m2, cost=sol.cost, time_s=time_s,
-                               reachable=reachable, tip_xyz=tip)
+                               reachable=reachable, tip_xyz=tip, travel_m=sol.travel_m,
+                               approach_m=2.0 * float(p["standoff_m"]))
         scores = score_candidates(p["strategy"], ctx, self.strategy_params, self.rng)
         idx = int(np.argmax(scores))
         nodes = sol.path_nodes(idx)

@@ -31,8 +31,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import ndtr
 
-STRATEGIES = ("proposed", "uncertainty", "random", "sequential", "info_gain")
+#: The one list of strategy names (the planner, the node, the benchmark and the launcher read it here).
+STRATEGY_NAMES = ("proposed", "uncertainty", "random", "sequential", "info_gain", "info_travel")
+STRATEGIES = STRATEGY_NAMES
 SCORE_FORMS = ("normalized", "additive", "ratio")
 
 
@@ -46,6 +49,8 @@ class SelectionContext:
     time_s: np.ndarray  # (M,) time of the touch (travel + approach + retract + dwell)
     reachable: np.ndarray  # (M,) bool
     tip_xyz: np.ndarray  # (3,)
+    travel_m: np.ndarray | None = None  # (M,) expected path length to the pre-touch point (m)
+    approach_m: float = 0.02  # approach + retract of a touch that meets the estimate (m)
 
 
 @dataclass
@@ -55,11 +60,34 @@ class StrategyParams:
     sequential_step_rad: float = 0.2
     info_gain_length_scale_m: float = 0.03
     info_gain_noise_var_m2: float = 1e-6
+    known_var_m2: float = 0.0
+    known_tolerance_m: float = 0.0
 
 
 def _norm(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
     m = float(np.max(np.abs(v[mask]))) if mask.any() else 0.0
     return v / m if m > 0 else np.zeros_like(v)
+
+
+def _sqdist(xyz: np.ndarray) -> np.ndarray:
+    return np.sum((xyz[:, None, :] - xyz[None, :, :]) ** 2, axis=2)
+
+
+def wrong_probability(var_m2: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """P(|f| > τ) = 2Φ(−τ/σ) at a point of the estimated surface (μ = 0, f ~ N(0, σ²)): the
+    chance that the true surface lies more than τ away there (f ≈ signed distance)."""
+    sd = np.sqrt(np.maximum(var_m2, 1e-300))
+    return 2.0 * ndtr(-tolerance_m / sd)
+
+
+def variance_reduction_m2(xyz: np.ndarray, var_m2: np.ndarray, length_scale_m: float,
+                          noise_var_m2: float) -> np.ndarray:
+    """Expected reduction of Σ_m σ_m² over the candidates by one contact at each candidate c:
+    σ_c²/(σ_c² + σ_n²)·Σ_m ρ(|m − c|)²σ_m², ρ(r) = exp(−r²/2ℓ²) (the approximate covariance
+    cov(m, c) ≈ ρσ_mσ_c). O(M²) memory and time."""
+    d2 = np.sum((xyz[:, None, :] - xyz[None, :, :]) ** 2, axis=2)
+    rho2 = np.exp(-d2 / length_scale_m**2)  # ρ² = exp(−r²/ℓ²)
+    return var_m2 / (var_m2 + noise_var_m2) * (rho2 @ var_m2)
 
 
 def score_candidates(name: str, ctx: SelectionContext, params: StrategyParams,
@@ -86,12 +114,18 @@ def score_candidates(name: str, ctx: SelectionContext, params: StrategyParams,
         tip = np.arctan2(ctx.tip_xyz[1] - c[1], ctx.tip_xyz[0] - c[0])
         ahead = np.mod(ang - tip - params.sequential_step_rad, 2 * np.pi)
         s = -ahead
-    elif name == "info_gain":
-        ell = params.info_gain_length_scale_m
-        d2 = np.sum((ctx.xyz[:, None, :] - ctx.xyz[None, :, :]) ** 2, axis=2)
-        rho2 = np.exp(-d2 / ell**2)  # ρ² = exp(−r²/ℓ²)
-        gain = var / (var + params.info_gain_noise_var_m2) * (rho2 @ var)
-        s = gain / np.maximum(ctx.time_s, 1e-9)
+    elif name in ("info_gain", "info_travel"):
+        gain = variance_reduction_m2(ctx.xyz, np.maximum(var - params.known_var_m2, 0.0),
+                                     params.info_gain_length_scale_m, params.info_gain_noise_var_m2)
+        if name == "info_gain":
+            s = gain / np.maximum(ctx.time_s, 1e-9)
+        else:
+            if params.known_tolerance_m > 0:
+                w = wrong_probability(var, params.known_tolerance_m)
+                gain = w * (np.exp(-_sqdist(ctx.xyz) / params.info_gain_length_scale_m**2) @ w)
+            if ctx.travel_m is None:
+                raise ValueError("info_travel needs the travel length of every candidate (travel_m)")
+            s = gain / np.maximum(np.where(ok, ctx.travel_m, np.inf) + ctx.approach_m, 1e-9)
     else:
         raise ValueError(f"strategy must be one of {STRATEGIES}, got '{name}'")
     return np.where(ok, s, -np.inf)

@@ -71,9 +71,11 @@ class TravelSolution:
 
 
 def _terminal_degree(graph: FreeSpaceGraph, term_node: np.ndarray) -> np.ndarray:
+    """Neighbours (lattice + terminals) per node; an isolated node counts 1 (it has no
+    transitions either way) so that D − W stays non-singular: its row then reads u_i = e_i."""
     deg = np.diff(graph.length_m.indptr).astype(np.float64)
     ok = term_node >= 0
-    return deg + np.bincount(term_node[ok], minlength=graph.n_nodes)
+    return np.maximum(deg + np.bincount(term_node[ok], minlength=graph.n_nodes), 1.0)
 
 
 class LmdpBackend:
