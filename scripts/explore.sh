@@ -105,12 +105,33 @@ explorer:
 YAML
 params_args+=(--params-file "$launch_yaml")
 
-names=() pids=()
+names=() pids=() restarts=()
+MAX_RESTARTS="${TACTILE_MAX_RESTARTS:-3}"  # per node; then a death ends the run
+launch() {  # launch INDEX: (re)start node names[INDEX] in the background, appending to logs/<name>.log
+  local i="$1" name="${names[$1]}" extra=()
+  if [ "$name" = recorder ] && [ "${restarts[$i]}" -gt 0 ]; then
+    # A restarted recorder writes the next file of the run: durable topics hand it their history.
+    local part="$run_dir/params/99_recorder_${restarts[$i]}.yaml"
+    printf 'recorder:\n  ros__parameters:\n    output: "%s"\n' "$run_dir/run.${restarts[$i]}.mcap" > "$part"
+    extra=(--params-file "$part")
+  fi
+  "$name" --ros-args "${params_args[@]}" "${extra[@]}" >> "$run_dir/logs/$name.log" 2>&1 &
+  pids[$i]=$!
+}
+late_nodes=" ${TACTILE_LATE_NODES:-} " deferred=()  # fault injection (tests): start these nodes late
 start() {  # start EXECUTABLE: a node in the background (its own node name), logging to logs/<name>.log
   local name="$1"
+  if [[ "$late_nodes" == *" $name "* ]] && [ "${2:-}" != now ]; then deferred+=("$name"); return; fi
   : > "$run_dir/logs/$name.log"  # exists now (the redirection below runs in the background job)
-  "$name" --ros-args "${params_args[@]}" > "$run_dir/logs/$name.log" 2>&1 &
-  names+=("$name"); pids+=($!)
+  names+=("$name"); restarts+=(0)
+  launch $((${#names[@]} - 1))
+}
+recover_recording() {  # recover_recording FILE: rewrite a recording cut by a crash so that all of it reads
+  local f="$1"
+  python -m tactile_bringup.mcap_recorder --recover "$f" "$f.recovering" >> "$run_dir/logs/recorder.log" 2>&1 \
+    && mv "$f.recovering" "$f" \
+    && echo "explore.sh: $(basename "$f") was cut by the recorder's crash: recovered (every message up to the cut)" >&2 \
+    || { rm -f "$f.recovering"; echo "explore.sh: could not recover $(basename "$f"); see logs/recorder.log" >&2; }
 }
 
 stopping=0
@@ -134,7 +155,7 @@ on_signal() {
 }
 summary() {
   echo "run folder: $run_dir"
-  for f in run.mcap report.json progress.png shape.csv shape.ply; do
+  for f in run.mcap run.*.mcap report.json progress.png shape.csv shape.ply; do
     [ -e "$run_dir/$f" ] && echo "  $f"
   done
   return 0
@@ -162,20 +183,39 @@ fi
 start arm_commander
 start explorer
 explorer_pid="${pids[-1]}"
+if [ "${#deferred[@]}" -gt 0 ]; then
+  echo "explore.sh: fault injection: starting ${deferred[*]} ${TACTILE_LATE_START_S:-5} s late" >&2
+  sleep "${TACTILE_LATE_START_S:-5}"
+  for n in "${deferred[@]}"; do start "$n" now; done
+fi
 # Show the explorer's progress here while it runs.
 tail -n +1 -f "$run_dir/logs/explorer.log" --pid "$explorer_pid" &
 tail_pid=$!
 
-# Supervise: the run ends when the explorer exits; a node that dies ends it too.
+# Supervise (as ros2 launch's respawn): the run ends when the explorer exits. A node
+# that dies is started again, up to MAX_RESTARTS times, and recovers its state from the
+# durable topics (docs/reliability.md); a node that exits with status 2 (bad parameters)
+# or dies too often ends the run.
 status=0
+cut_recordings=()
 while kill -0 "$explorer_pid" 2>/dev/null; do
   for i in "${!pids[@]}"; do
-    if ! kill -0 "${pids[$i]}" 2>/dev/null; then
-      echo "explore.sh: ${names[$i]} exited unexpectedly; see $run_dir/logs/${names[$i]}.log:" >&2
+    [ "${names[$i]}" = explorer ] && continue
+    kill -0 "${pids[$i]}" 2>/dev/null && continue
+    code=0; wait "${pids[$i]}" 2>/dev/null || code=$?
+    if [ "$code" = 2 ] || [ "${restarts[$i]}" -ge "$MAX_RESTARTS" ]; then
+      echo "explore.sh: ${names[$i]} exited unexpectedly (status $code); see $run_dir/logs/${names[$i]}.log:" >&2
       tail -n 15 "$run_dir/logs/${names[$i]}.log" >&2
       status=1
       break 2
     fi
+    restarts[$i]=$((restarts[$i] + 1))
+    echo "explore.sh: ${names[$i]} died (status $code): restarting it (${restarts[$i]}/$MAX_RESTARTS)" >&2
+    if [ "${names[$i]}" = recorder ]; then
+      prev="$run_dir/run.mcap"; [ "${restarts[$i]}" -gt 1 ] && prev="$run_dir/run.$((restarts[$i] - 1)).mcap"
+      cut_recordings+=("$prev")
+    fi
+    launch "$i"
   done
   sleep 0.5
 done
@@ -184,5 +224,6 @@ if [ "$status" = 0 ]; then
 fi
 stop_all
 wait "$tail_pid" 2>/dev/null || true
+for f in "${cut_recordings[@]}"; do recover_recording "$f"; done
 summary
 exit "$status"
