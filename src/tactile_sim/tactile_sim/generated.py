@@ -151,12 +151,6 @@ def _rotated(fn: LocalSdf, theta: float) -> LocalSdf:
     return lambda q: fn(q @ R)  # (R^T q^T)^T = q R
 
 
-def _recentre(fn: LocalSdf, bounds: np.ndarray) -> tuple[LocalSdf, np.ndarray]:
-    """Shift so that the bounding box is centred on the origin."""
-    c = 0.5 * (bounds[0] + bounds[1])
-    return (lambda q: fn(q + c)), bounds - c
-
-
 @dataclass
 class _Shape2D:
     """A 2D construction before rotation and centring."""
@@ -166,6 +160,8 @@ class _Shape2D:
     description: str
     concave_corners_rad: Optional[list] = None
     reachable: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    #: exact bounds of the shape rotated by theta (None: the rotated corners of ``bounds``)
+    tight_bounds: Optional[Callable[[float], np.ndarray]] = None
 
 
 def _polygon_shape(v: np.ndarray, rho_m: float, description: str, corners=None, reachable=()) -> _Shape2D:
@@ -245,7 +241,7 @@ def _notched2d(rng: np.random.Generator) -> _Shape2D:
     W = float(rng.uniform(0.09, 0.14)) - 2 * rho
     H = float(rng.uniform(0.06, 0.11)) - 2 * rho
     wall = 0.015
-    corners, reach = [], []
+    reach = []
 
     def slots(k: int) -> list[tuple[float, float]]:
         """k slot x-ranges along [0, W] with walls ≥ 1.5 cm between them."""
@@ -424,7 +420,7 @@ def _section(family: str, rng: np.random.Generator) -> GeneratedShape:
 def _finish2d_full(s: _Shape2D, rng: np.random.Generator) -> GeneratedShape:
     """Rotate by a random angle whose bounding box still fits MAX_SIZE_M (else the
     unrotated shape), centre the box, wrap as a GeneratedShape."""
-    tight = getattr(s, "tight_bounds", None)
+    tight = s.tight_bounds
 
     def rotated_bounds(theta: float) -> np.ndarray:
         if tight is not None:
