@@ -130,8 +130,10 @@ class RunRecorder:
         self.travel_m += travel_m
         self.time_s += time_s
 
-    def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float) -> dict:
-        """Record a finished touch: its goal pose message and its observation point."""
+    def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float,
+                  path_xyz=None) -> dict:
+        """Record a finished touch: its goal pose message and its observation point
+        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure)."""
         self.add_travel(travel_m, time_s)
         contact = int(observation["label"]) == LABEL_CONTACT
         point = np.array([observation["x"], observation["y"], observation["z"]], dtype=float)
@@ -142,7 +144,7 @@ class RunRecorder:
             target = np.array([p.x, p.y, p.z]) + self.standoff_m * quaternion_x_axis(xyzw(goal.pose.orientation))
         observe(self.estimator, point, normal, contact)
         record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
-                              decision_ms, self.estimator, self.evaluator)
+                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz)
         self.touches.append(record)
         return record
 
