@@ -31,8 +31,11 @@ from tactile_common.fields import (
 from .export import export_level_set
 from .gp import GPIS, FactorError
 from .kernels import KERNEL_TYPES, make_kernel
+from .local import LocalGPIS
 from .levelset import LevelSet, farthest_point_subsample, lattice_points, zero_level_set
 from .prior import sphere_mean, zero_mean
+
+METHODS = ("exact", "local", "auto")
 
 #: name -> (default, description). The node declares exactly these ROS parameters;
 #: ``ShapeEstimator.from_params`` takes a dict with these keys (missing keys: default).
@@ -60,6 +63,20 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "candidates.table_margin_m": (0.005, "3D: candidates only above this height (m)", {"ge": 0.0}),
     "duplicate_distance_m": (0.001, "reject an observation this close to an earlier one (m)", {"ge": 0.0}),
     "jitter": (1e-10, "added to the covariance diagonal of every new observation", {"ge": 0.0}),
+    "method": ("exact", "'exact' (one GP, the whole lattice updated per contact), 'local' (local GP experts on "
+               "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
+               "local.auto_min_contacts observations, then local)", {"choices": METHODS}),
+    "local.auto_min_contacts": (300, "'auto': observations from which the local path takes over", {"ge": 1}),
+    "local.leaf_capacity": (24, "local: observations in an octree cell before it splits", {"ge": 1}),
+    "local.context_m": (0.015, "local: an expert sees the data this far beyond its octree cell (m)", {"gt": 0.0}),
+    "local.blend": (0.25, "local: half-width of the experts' blending ramp, a fraction of min(cell size, "
+                    "local.context_m)", {"gt": 0.0, "lt": 1.0}),
+    "local.anchor_spacing_m": (0.015, "local: an observation this far from every anchor becomes one (m)",
+                               {"gt": 0.0}),
+    "local.max_anchors": (256, "local: anchors of the global GP (far field, inside/outside sign)", {"ge": 1}),
+    "local.band_m": (0.008, "local: lattice band around the zero level set and the contacts, exactly blended (m)",
+                     {"gt": 0.0}),
+    "local.coarse_stride": (3, "local: the anchor GP's lattice takes every n-th node per axis", {"ge": 1}),
 }
 
 
@@ -124,8 +141,21 @@ class ShapeEstimator:
         self.max_candidates = int(p["candidates.max_count"])
         self.table_margin_m = float(p["candidates.table_margin_m"])
         self.duplicate_distance_m = _nonneg(p, "duplicate_distance_m")
+        self.method = str(p["method"])
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, got '{p['method']}'")
+        self.auto_min_contacts = int(p["local.auto_min_contacts"])
+        self._local_args = dict(
+            leaf_capacity=int(p["local.leaf_capacity"]), context_m=float(p["local.context_m"]),
+            blend=float(p["local.blend"]), anchor_spacing_m=float(p["local.anchor_spacing_m"]),
+            max_anchors=int(p["local.max_anchors"]), band_m=float(p["local.band_m"]),
+            coarse_stride=int(p["local.coarse_stride"]))
+        if not 0 < self._local_args["blend"] < 1:
+            raise ValueError(f"local.blend must be in (0, 1), got {p['local.blend']}")
+        if not self._local_args["context_m"] > 0:
+            raise ValueError(f"local.context_m must be > 0, got {p['local.context_m']}")
         self.gp = GPIS(self.kernel, self.dim, self._prior(p), jitter=_nonneg(p, "jitter"))
-        self.gp.set_eval_points(self._lattice)
+        self.local: Optional[LocalGPIS] = None
         self.reset()
 
     @classmethod
@@ -155,6 +185,15 @@ class ShapeEstimator:
     def reset(self) -> None:
         """Forget every observation (back to the prior)."""
         self.gp.reset()
+        if self.method == "local":
+            self.gp.clear_eval_points()
+            self.local = self._new_local()
+        else:
+            if self.gp.eval_points is None:
+                self.gp.set_eval_points(self._lattice)
+            self.local = None
+        self._obs: list[tuple] = []  # accepted GP observations (x, value, var, normal, normal var)
+        self._version = 0
         self._points = np.zeros((0, self.dim))
         self.n_observations = 0
         self.n_rejected = 0
@@ -199,18 +238,45 @@ class ShapeEstimator:
             d = float(np.sqrt(((self._points - x) ** 2).sum(1).min()))
             if d < self.duplicate_distance_m:
                 return False, f"duplicate: {d * 1000:.2f} mm from an earlier observation"
+        if label == LABEL_FREE_SPACE:
+            obs = (x, self.free_value, self.free_var if value_var_m2 is None else float(value_var_m2), None, 0.0)
+        else:
+            obs = (x, 0.0, self.contact_var if value_var_m2 is None else float(value_var_m2),
+                   self._unit_normal(normal_xyz), self.normal_var)
         try:
-            if label == LABEL_FREE_SPACE:
-                var = self.free_var if value_var_m2 is None else float(value_var_m2)
-                self.gp.add_observation(x, self.free_value, var)
-            else:
-                var = self.contact_var if value_var_m2 is None else float(value_var_m2)
-                self.gp.add_observation(x, 0.0, var, self._unit_normal(normal_xyz), self.normal_var)
+            self._model().add_observation(*obs)
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
+        self._obs.append(obs)
         self._points = np.vstack([self._points, x])
         self.n_observations += 1
+        self._version += 1
+        if self.method == "auto" and self.local is None and self.n_observations >= self.auto_min_contacts:
+            self._switch_to_local()
         return True, ""
+
+    # -- paths -----------------------------------------------------------------
+    def _new_local(self) -> LocalGPIS:
+        return LocalGPIS(self.kernel, self.dim, self.gp.mean_fn, self.gp.jitter, self.bounds_m, self.lattice_axes,
+                         **self._local_args)
+
+    def _model(self):
+        """The GP taking observations and answering queries: the exact GPIS or the local one."""
+        return self.local if self.local is not None else self.gp
+
+    def _switch_to_local(self) -> None:
+        """'auto': rebuild the observations so far as a LocalGPIS and drop the exact lattice state."""
+        local = self._new_local()
+        for obs in self._obs:
+            local.add_observation(*obs)
+        self.local = local
+        self.gp.reset()
+        self.gp.clear_eval_points()
+
+    @property
+    def active_method(self) -> str:
+        """'exact' or 'local': the path answering now."""
+        return "local" if self.local is not None else "exact"
 
     def _unit_normal(self, normal_xyz) -> Optional[np.ndarray]:
         if not self.use_normals or normal_xyz is None:
@@ -230,12 +296,12 @@ class ShapeEstimator:
 
     def predict(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Posterior mean and variance of f at (N, dim) points."""
-        return self.gp.predict(self._xy(points))
+        return self._model().predict(self._xy(points))
 
     def inside(self, points: np.ndarray) -> np.ndarray:
         """(N,) bool: mean < 0 (in 3D also z >= 0: nothing below the table)."""
         P = self._xy(points)
-        ins = self.gp.predict(P, return_var=False) < 0
+        ins = self._model().predict(P, return_var=False) < 0
         if self.dim == 3:
             ins &= P[:, 2] >= 0
         return ins
@@ -260,11 +326,13 @@ class ShapeEstimator:
 
     def lattice_mean(self) -> np.ndarray:
         """Posterior mean on the lattice, shaped ``lattice_shape``."""
-        return self.gp.eval_mean().reshape(self.lattice_shape)
+        m = self.local.lattice_mean() if self.local is not None else self.gp.eval_mean()
+        return m.reshape(self.lattice_shape)
 
     def lattice_variance(self) -> np.ndarray:
         """Posterior variance on the lattice, shaped ``lattice_shape``."""
-        return self.gp.eval_variance().reshape(self.lattice_shape)
+        v = self.local.lattice_variance() if self.local is not None else self.gp.eval_variance()
+        return v.reshape(self.lattice_shape)
 
     def occupancy(self) -> np.ndarray:
         """P(inside) = Phi(-mu / sigma) on the lattice, shaped ``lattice_shape``."""
@@ -294,10 +362,10 @@ class ShapeEstimator:
         return np.column_stack([P, np.full(len(P), self.plane_z_m)])
 
     def _map_and_level_set(self) -> tuple[int, np.ndarray, LevelSet]:
-        if self._cache is not None and self._cache[0] == self.gp.n:
+        if self._cache is not None and self._cache[0] == self._version:
             return self._cache
         mean = self.lattice_mean()
-        var = self.gp.eval_variance()
+        var = self.lattice_variance().ravel()
         ls = zero_level_set(mean, self.lattice_axes)
         # lattice normals: central differences of the lattice mean (cheap); candidates
         # below use the exact GP posterior gradient.
@@ -306,8 +374,13 @@ class ShapeEstimator:
         if self.dim == 3:
             cand = cand[cand[:, 2] > self.table_margin_m]
         cand = cand[farthest_point_subsample(cand, self.max_candidates)]
-        c_mean, c_var = self.gp.predict(cand) if len(cand) else (np.zeros(0), np.zeros(0))
-        c_grad = self.gp.predict_gradient(cand) if len(cand) else np.zeros((0, self.dim))
+        if not len(cand):
+            c_mean, c_var, c_grad = np.zeros(0), np.zeros(0), np.zeros((0, self.dim))
+        elif self.local is not None:
+            c_mean, c_var, c_grad = self.local.predict(cand, return_var=True, return_grad=True)
+        else:
+            c_mean, c_var = self.gp.predict(cand)
+            c_grad = self.gp.predict_gradient(cand)
         n_lat = len(self._lattice)
         out = np.zeros(n_lat + len(cand), dtype=VARIANCE_MAP_DTYPE)
         xyz = np.vstack([self._to_xyz(self._lattice), self._to_xyz(cand)])
@@ -319,7 +392,7 @@ class ShapeEstimator:
             out[name] = g[:, i]
         out["kind"][:n_lat] = KIND_LATTICE
         out["kind"][n_lat:] = KIND_CANDIDATE
-        self._cache = (self.gp.n, out, ls)
+        self._cache = (self._version, out, ls)
         return self._cache
 
 

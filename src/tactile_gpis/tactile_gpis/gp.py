@@ -140,7 +140,7 @@ class GPIS:
     def _grow(self, need: int) -> None:
         if need <= self._cap:
             return
-        cap = max(need, 2 * self._cap, 16)
+        cap = max(need, self._cap + max(16, self._cap // 4))  # 1.25x: at most ~1.6x the memory needed
         L = np.zeros((cap, cap))
         L[: self.n, : self.n] = self.L
         beta = np.zeros(cap)
@@ -149,10 +149,12 @@ class GPIS:
         self._cap = cap
 
     # -- observations --------------------------------------------------------
-    def add_rows(self, X: np.ndarray, t: np.ndarray, y: np.ndarray, noise_var: np.ndarray) -> None:
+    def add_rows(self, X: np.ndarray, t: np.ndarray, y: np.ndarray, noise_var: np.ndarray,
+                 K12: Optional[np.ndarray] = None, K22: Optional[np.ndarray] = None) -> None:
         """Append a block of B rows (points, types, observed values, noise variances).
 
-        O(n^2 B) for the factor and O(n B |M|) for the evaluation set.
+        O(n^2 B) for the factor and O(n B |M|) for the evaluation set. ``K12`` (n, B) and
+        ``K22`` (B, B, without noise) may be passed when the caller already has them.
 
         Raises:
             FactorError: the block makes the covariance numerically singular; the
@@ -173,8 +175,11 @@ class GPIS:
         prior = np.where(t < 0, m_val, m_grad[np.arange(B), np.maximum(t, 0)])
         resid = y - prior
         n = self.n
-        K12 = cross_cov(self.kernel, self.X, self.t, X, t)
-        K22 = cross_cov(self.kernel, X, t, X, t) + np.diag(noise_var + self.jitter)
+        if K12 is None:
+            K12 = cross_cov(self.kernel, self.X, self.t, X, t)
+        if K22 is None:
+            K22 = cross_cov(self.kernel, X, t, X, t)
+        K22 = K22 + np.diag(noise_var + self.jitter)
         L21T = solve_triangular(self.L, K12, lower=True, check_finite=False) if n else np.zeros((0, B))
         S = K22 - L21T.T @ L21T
         try:
@@ -226,6 +231,13 @@ class GPIS:
             np.concatenate([[value_noise_var], np.full(self.dim, gradient_noise_var)]),
         )
 
+    @property
+    def alpha(self) -> np.ndarray:
+        """(K + N)^-1 (y - m(X)) = L^-T beta: mu(q) = m(q) + k(X, q)^T alpha."""
+        if self.n == 0:
+            return np.zeros(0)
+        return solve_triangular(self.L, self.beta, lower=True, trans="T", check_finite=False)
+
     def refit(self) -> None:
         """Batch refit from all rows: full Cholesky (O(n^3)) and, if an evaluation set is
         kept, V from scratch (O(n^2 |M|)). The naive path; equals the incremental state."""
@@ -258,6 +270,11 @@ class GPIS:
         else:
             self._eval_mean = self._eval_prior.copy()
             self._eval_vsum = np.zeros(len(M))
+
+    def clear_eval_points(self) -> None:
+        """Stop maintaining an evaluation set (frees V)."""
+        self._eval = None
+        self._V = None
 
     def _v_store(self, row: int, rows: np.ndarray) -> None:
         """Write rows of V starting at ``row``, adding blocks as needed."""

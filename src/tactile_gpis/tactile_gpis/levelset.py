@@ -34,6 +34,13 @@ def lattice_points(axes: list[np.ndarray]) -> np.ndarray:
     return np.stack([g.ravel() for g in grids], axis=-1)
 
 
+def _straddling(flat: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Mask of the cells (C, corners) with corners on both sides of 0 (the only ones
+    that emit elements; dropping the others first changes nothing but the time)."""
+    inside = flat[cells] < 0
+    return inside.any(1) & ~inside.all(1)
+
+
 def _vertices_from_edges(values: np.ndarray, points: np.ndarray, ea: np.ndarray, eb: np.ndarray):
     """Unique crossing vertices of node pairs (ea, eb) (any shape) and the inverse map."""
     lo, hi = np.minimum(ea, eb), np.maximum(ea, eb)
@@ -64,6 +71,7 @@ def marching_squares(values: np.ndarray, axes: list[np.ndarray]) -> LevelSet:
     points = lattice_points(axes)
     idx = np.arange(flat.size).reshape(nx, ny)
     corners = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], axis=-1).reshape(-1, 4)
+    corners = corners[_straddling(flat, corners)]
     inside = flat[corners] < 0
     case = (inside * (1 << np.arange(4))).sum(1)
     centre_inside = flat[corners].mean(1) < 0
@@ -122,6 +130,7 @@ def marching_tetrahedra(values: np.ndarray, axes: list[np.ndarray]) -> LevelSet:
     idx = np.arange(flat.size).reshape(nx, ny, nz)
     cube = np.stack([idx[dx: nx - 1 + dx, dy: ny - 1 + dy, dz: nz - 1 + dz].ravel()
                      for dx, dy, dz in _CUBE_OFFSETS], axis=-1)  # (C, 8)
+    cube = cube[_straddling(flat, cube)]
     tri_a, tri_b, tri_dir = [], [], []
     for tet in _TETS:
         nodes = cube[:, tet]  # (C, 4)

@@ -1,0 +1,521 @@
+"""Scalable GPIS: local GP experts on an octree (quadtree in 2D) over a global anchor GP,
+blended by a partition of unity and evaluated on a narrow band of the lattice.
+
+Model (world frame, metres). The anchor GP is the exact GP on a thinned subset A of the
+observations (a contact joins A when it is farther than ``anchor_spacing_m`` from every
+anchor, up to ``max_anchors``); its mean mu_A carries the far field and the inside/outside
+sign where no local data are. Each leaf e of the tree is an expert: the exact GP (same
+kernel, zero prior mean) on every observation row inside its *data box* (its cell grown by
+``context`` times the cell size on each side), fitted to the residuals r = y - mu_A(X)
+(values and gradient components). With C^1 partition-of-unity weights w_e (1 inside the
+cell shrunk by ``blend`` cell sizes, 0 outside the cell grown by it)
+
+    mu(x)     = mu_A(x) + sum_e w_e(x) k_e(x)^T alpha_e / sum_e w_e(x),
+    sigma2(x) = min(sigma2_A(x), sum_e w_e(x) sigma2_e(x) / sum_e w_e(x)),
+
+both variances being exact posteriors on subsets of the data, hence upper bounds of the
+exact one. A GP posterior at a point surrounded by data depends almost only on the data
+nearby (screening), so near the contacts this matches the exact GP on all data; tests and
+``scripts/bench.sh gpis`` measure the error against it.
+
+Cost per contact: one Cholesky append (O(m^2) for m rows) in each expert whose data box
+holds the point (about (1 + 2 context)^(d-1) experts for points on a surface), and the
+band lattice nodes of those experts. A leaf holding more than ``leaf_capacity`` contacts
+splits into 2^d children (refactored once), so every expert stays small and the state is
+O(n m) for n observations. Anchors are committed to the anchor GP in batches (when the
+pending ones reach ``anchor_batch`` of the anchor count, or the oldest waited
+``anchor_delay`` observations); a commit recomputes every residual and expert (O(n |A|)).
+
+The lattice mean is exact-blended on the *band*: nodes with |mu_A| < ``band_m`` or within
+``band_m`` of an observation (the band only grows); elsewhere it is mu_A interpolated
+(multilinear) from a coarse lattice (every ``coarse_stride``-th node), which only has to
+get the sign right there. The lattice variance is sigma2_A interpolated the same way (an
+upper bound); variances at given points (the candidates) use the formula above.
+"""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+import scipy.sparse as sp
+
+from .expert import ExpertGP, lower_solve
+from .gp import GPIS, VALUE, FactorError, MeanFn, cross_cov, gradient_rows, zero_mean
+from .kernels import Kernel
+
+_CHUNK_ROWS = 2048  # query rows per cross-covariance chunk
+
+
+def _smoothstep(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """C^1 ramp S(s) = 3s^2 - 2s^3 on [0, 1] (clipped) and its derivative."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * (3.0 - 2.0 * s), 6.0 * s * (1.0 - s)
+
+
+def _interpolation_matrix(axes: list[np.ndarray], P: np.ndarray) -> sp.csr_matrix:
+    """Sparse (N, prod(len(axes))) multilinear interpolation from the lattice ``axes`` to P."""
+    N, d = P.shape
+    shape = [len(a) for a in axes]
+    lo_idx, frac = [], []
+    for i, a in enumerate(axes):
+        j = np.clip(np.searchsorted(a, P[:, i], side="right") - 1, 0, len(a) - 2)
+        lo_idx.append(j)
+        frac.append(np.clip((P[:, i] - a[j]) / (a[j + 1] - a[j]), 0.0, 1.0))
+    rows, cols, vals = [], [], []
+    for code in range(2 ** d):
+        bits = [(code >> k) & 1 for k in range(d)]
+        idx = [lo_idx[i] + bits[i] for i in range(d)]
+        w = np.prod([frac[i] if bits[i] else 1.0 - frac[i] for i in range(d)], axis=0)
+        rows.append(np.arange(N))
+        cols.append(np.ravel_multi_index(idx, shape))
+        vals.append(w)
+    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(N, int(np.prod(shape))))
+
+
+class _Leaf:
+    """One expert: a tree cell, its data box, and (once active) the exact GP on its rows."""
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, depth: int, kernel: Kernel, dim: int,
+                 context_m: float, blend: float, jitter: float) -> None:
+        self.lo, self.hi, self.depth = lo, hi, depth
+        size = hi - lo
+        self.dlo, self.dhi = lo - context_m, hi + context_m  # data box
+        self.centre, self.half = 0.5 * (lo + hi), 0.5 * size
+        self.ramp = np.full(dim, blend * min(float(size.min()), context_m))
+        self.blo, self.bhi = lo - self.ramp, hi + self.ramp  # weight support
+        self.own: list[int] = []  # observations inside the cell
+        self.rows = np.zeros(0, dtype=np.int64)  # global row ids inside the data box, in factor order
+        self.gp = ExpertGP(kernel, dim, jitter)
+        self.active = False  # factor built and maintained (only where the band or a query needs it)
+        # band nodes in the weight support: lattice ids, raw weights, K(nodes, rows), contribution
+        self.nodes = np.zeros(0, dtype=np.int64)
+        self.w = np.zeros(0)
+        self.kc = np.zeros((0, 0))
+        self.contrib = np.zeros(0)
+
+    def weight(self, X: np.ndarray, grad: bool = False):
+        """Raw partition-of-unity weight w(x) (N,) (and its gradient (N, d))."""
+        t = (self.half + self.ramp - np.abs(X - self.centre)) / (2.0 * self.ramp)
+        s, ds = _smoothstep(t)
+        w = np.prod(s, axis=1)
+        if not grad:
+            return w
+        dsdx = -ds * np.sign(X - self.centre) / (2.0 * self.ramp)
+        g = np.empty_like(X)
+        for i in range(X.shape[1]):
+            g[:, i] = dsdx[:, i] * np.prod(np.delete(s, i, axis=1), axis=1)
+        return w, g
+
+
+class LocalGPIS:
+    """Local-expert GPIS with an anchor GP (see the module docstring for the math).
+
+    Args:
+        kernel, dim, mean_fn, jitter: as for :class:`GPIS` (the anchor GP uses ``mean_fn``).
+        bounds_m: (2, dim) box holding every observation (the tree's root cell).
+        lattice_axes: per axis the lattice node coordinates (the map).
+        leaf_capacity: observations in a leaf before it splits.
+        context_m: data box margin (m): an expert sees the data this far beyond its cell.
+        blend: weight ramp half-width, as a fraction of min(cell size, context_m) (< 1).
+        min_leaf_m: leaves never split below this size.
+        anchor_spacing_m, max_anchors, anchor_batch, anchor_delay: the anchor subset.
+        band_m: lattice band half-width around the zero level set and the observations.
+        coarse_stride: the anchor GP's lattice takes every n-th node per axis.
+    """
+
+    def __init__(self, kernel: Kernel, dim: int, mean_fn: Optional[MeanFn], jitter: float,
+                 bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 24,
+                 context_m: float = 0.015, blend: float = 0.25, min_leaf_m: float = 0.004,
+                 anchor_spacing_m: float = 0.015, max_anchors: int = 256, anchor_batch: float = 0.25,
+                 anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3) -> None:
+        if not 0 < blend < 1:
+            raise ValueError(f"local blend {blend} must be in (0, 1)")
+        if not context_m > 0:
+            raise ValueError(f"local context_m {context_m} must be > 0")
+        if leaf_capacity < 1 or max_anchors < 1 or coarse_stride < 1:
+            raise ValueError("leaf_capacity, max_anchors and coarse_stride must be >= 1")
+        self.kernel, self.dim, self.jitter = kernel, dim, float(jitter)
+        self.mean_fn = mean_fn or zero_mean
+        self.bounds_m = np.asarray(bounds_m, float)
+        self.axes = [np.asarray(a, float) for a in lattice_axes]
+        self.shape = tuple(len(a) for a in self.axes)
+        self.leaf_capacity, self.context_m, self.blend = int(leaf_capacity), float(context_m), float(blend)
+        self.min_leaf_m = float(min_leaf_m)
+        self.anchor_spacing_m, self.max_anchors = float(anchor_spacing_m), int(max_anchors)
+        self.anchor_batch, self.anchor_delay = float(anchor_batch), int(anchor_delay)
+        self.band_m = float(band_m)
+        grids = np.meshgrid(*self.axes, indexing="ij")
+        self._lattice = np.stack([g.ravel() for g in grids], axis=-1)
+        self._coarse_axes = [np.unique(np.r_[a[::coarse_stride], a[-1]]) for a in self.axes]
+        cg = np.meshgrid(*self._coarse_axes, indexing="ij")
+        self._coarse = np.stack([g.ravel() for g in cg], axis=-1)
+        self._interp = _interpolation_matrix(self._coarse_axes, self._lattice)
+        self.reset()
+
+    # -- state ---------------------------------------------------------------
+    def reset(self) -> None:
+        """Drop every observation."""
+        d = self.dim
+        self.n_obs = 0
+        self.n_rows = 0
+        self._X = np.zeros((0, d))
+        self._t = np.zeros(0, dtype=np.int64)
+        self._y = np.zeros(0)
+        self._noise = np.zeros(0)
+        self._resid = np.zeros(0)  # y - mu_A per row
+        self._obs_pts = np.zeros((0, d))
+        self._obs_start: list[int] = []
+        self._obs_len: list[int] = []
+        self.anchor = GPIS(self.kernel, d, self.mean_fn, self.jitter)
+        self.anchor.set_eval_points(self._coarse)
+        self._anchor_alpha = np.zeros(0)
+        self._anchor_obs: list[int] = []
+        self._pending: list[int] = []
+        self.leaves = [self._new_leaf(self.bounds_m[0].copy(), self.bounds_m[1].copy(), 0)]
+        self._boxes: Optional[dict] = None
+        M = len(self._lattice)
+        self._band = np.zeros(M, dtype=bool)
+        self._num = np.zeros(M)  # sum_e w_e r_e on band nodes
+        self._wsum = np.zeros(M)  # sum_e w_e on band nodes
+        self._mu_a_band = np.zeros(M)  # exact mu_A on band nodes
+        self._refresh_coarse()
+        self._add_band_nodes(np.flatnonzero(np.abs(self._mu_a_lat) < self.band_m))
+
+    def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int) -> _Leaf:
+        return _Leaf(lo, hi, depth, self.kernel, self.dim, self.context_m, self.blend, self.jitter)
+
+    @property
+    def n(self) -> int:
+        """Observation rows held (as GPIS.n)."""
+        return self.n_rows
+
+    @property
+    def n_anchors(self) -> int:
+        return len(self._anchor_obs)
+
+    @property
+    def n_active(self) -> int:
+        """Experts with a factor."""
+        return sum(lf.active for lf in self.leaves)
+
+    def state_bytes(self) -> int:
+        """Bytes held by the factors, caches, row arrays and lattice arrays (the state's size)."""
+        b = sum(lf.gp.nbytes() + lf.kc.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes for lf in self.leaves)
+        b += self.anchor._L.nbytes + sum(v.nbytes for v in (self.anchor._V or []))
+        b += self._X.nbytes + 5 * self._y.nbytes
+        b += sum(a.nbytes for a in (self._band, self._num, self._wsum, self._mu_a_band, self._mu_a_lat,
+                                     self._var_a_lat))
+        return int(b)
+
+    def _box_arrays(self) -> dict:
+        """(L, d) arrays of the leaves' cells, data boxes and weight supports (cached)."""
+        if self._boxes is None:
+            self._boxes = {k: np.array([getattr(lf, k) for lf in self.leaves])
+                           for k in ("lo", "hi", "dlo", "dhi", "blo", "bhi")}
+        return self._boxes
+
+    def _leaves_overlapping(self, lo: np.ndarray, hi: np.ndarray, which: str) -> np.ndarray:
+        """Indices of the leaves whose box ``which`` ('d' data, 'b' weight) meets [lo, hi]."""
+        b = self._box_arrays()
+        return np.flatnonzero(np.all((b[which + "hi"] >= lo) & (b[which + "lo"] <= hi), axis=1))
+
+    # -- anchor GP -------------------------------------------------------------
+    def _mu_a(self, X: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Anchor posterior mean of the rows (X, t): values or gradient components."""
+        mv, mg = self.mean_fn(X)
+        out = np.where(t < 0, mv, mg[np.arange(len(t)), np.maximum(t, 0)])
+        if self.anchor.n:
+            for s in range(0, len(t), _CHUNK_ROWS):
+                e = min(len(t), s + _CHUNK_ROWS)
+                out[s:e] += cross_cov(self.kernel, X[s:e], t[s:e], self.anchor.X, self.anchor.t) @ self._anchor_alpha
+        return out
+
+    def _refresh_coarse(self) -> None:
+        """Anchor mean/variance on the fine lattice, interpolated from the coarse one."""
+        self._mu_a_lat = self._interp @ self.anchor.eval_mean()
+        self._var_a_lat = self._interp @ self.anchor.eval_variance()
+
+    def _commit_anchors(self) -> None:
+        """Add the pending anchors to the anchor GP; recompute every residual and expert."""
+        for i in self._pending:
+            s, k = self._obs_start[i], self._obs_len[i]
+            try:
+                self.anchor.add_rows(self._X[s:s + k], self._t[s:s + k], self._y[s:s + k], self._noise[s:s + k])
+            except FactorError:
+                continue  # an anchor the anchor GP cannot take stays a local observation only
+            self._anchor_obs.append(i)
+        self._pending = []
+        self._anchor_alpha = self.anchor.alpha
+        self._resid = self._y - self._mu_a(self._X, self._t)
+        for lf in self.leaves:
+            if lf.active:
+                lf.gp.set_residuals(self._resid[lf.rows])
+        self._refresh_coarse()
+        band = np.flatnonzero(self._band)
+        self._mu_a_band[band] = self._mu_a(self._lattice[band], np.full(len(band), VALUE))
+        for lf in self.leaves:
+            self._update_contrib(lf)
+        self._add_band_nodes(np.flatnonzero(~self._band & (np.abs(self._mu_a_lat) < self.band_m)))
+
+    # -- experts -----------------------------------------------------------------
+    def _activate(self, lf: _Leaf) -> None:
+        """Build the expert's factor from its rows (O(m^3)) and start maintaining it."""
+        r = lf.rows
+        lf.gp.build(self._X[r], self._t[r], self._resid[r], self._noise[r])
+        lf.active = True
+        lf.kc = np.zeros((0, lf.gp.n))  # invariant for an active leaf: kc is (len(nodes), gp.n)
+        if len(lf.nodes):
+            lf.kc = cross_cov(self.kernel, self._lattice[lf.nodes], np.full(len(lf.nodes), VALUE),
+                              lf.gp.X, lf.gp.t)
+            self._update_contrib(lf)
+
+    def _update_contrib(self, lf: _Leaf) -> None:
+        if not len(lf.nodes):
+            return
+        c = lf.kc @ lf.gp.alpha if lf.gp.n else np.zeros(len(lf.nodes))
+        self._num[lf.nodes] += lf.w * (c - lf.contrib)
+        lf.contrib = c
+
+    # -- band ------------------------------------------------------------------
+    def _add_band_nodes(self, idx: np.ndarray) -> None:
+        idx = np.unique(idx[~self._band[idx]])
+        if not len(idx):
+            return
+        self._band[idx] = True
+        P = self._lattice[idx]
+        self._mu_a_band[idx] = self._mu_a(P, np.full(len(idx), VALUE))
+        for j in self._leaves_overlapping(P.min(0), P.max(0), "b"):
+            lf = self.leaves[j]
+            inside = np.all((P >= lf.blo) & (P <= lf.bhi), axis=1)
+            if inside.any():
+                self._leaf_add_nodes(lf, idx[inside])
+
+    def _leaf_add_nodes(self, lf: _Leaf, idx: np.ndarray) -> None:
+        P = self._lattice[idx]
+        w = lf.weight(P)
+        keep = w > 0
+        idx, P, w = idx[keep], P[keep], w[keep]
+        if not len(idx):
+            return
+        if not lf.active:
+            self._activate(lf)
+        K = cross_cov(self.kernel, P, np.full(len(P), VALUE), lf.gp.X, lf.gp.t)
+        c = K @ lf.gp.alpha if lf.gp.n else np.zeros(len(idx))
+        lf.nodes = np.r_[lf.nodes, idx]
+        lf.w = np.r_[lf.w, w]
+        lf.kc = np.vstack([lf.kc, K])
+        lf.contrib = np.r_[lf.contrib, c]
+        self._wsum[idx] += w
+        self._num[idx] += w * c
+
+    def _near_nodes(self, x: np.ndarray) -> np.ndarray:
+        """Lattice ids within band_m (box) of x."""
+        rng = []
+        for i, a in enumerate(self.axes):
+            lo = np.searchsorted(a, x[i] - self.band_m)
+            hi = np.searchsorted(a, x[i] + self.band_m, side="right")
+            rng.append(np.arange(lo, hi))
+        if any(len(r) == 0 for r in rng):
+            return np.zeros(0, dtype=np.int64)
+        mesh = np.meshgrid(*rng, indexing="ij")
+        return np.ravel_multi_index([m.ravel() for m in mesh], self.shape)
+
+    # -- observations ------------------------------------------------------------
+    def add_observation(self, x: np.ndarray, value: float, value_noise_var: float,
+                        gradient: Optional[np.ndarray] = None, gradient_noise_var: float = 0.0) -> None:
+        """One point: its value and optionally its gradient (1 or 1 + d rows), as GPIS.
+
+        Raises:
+            FactorError: an expert cannot take the rows; the state is unchanged.
+        """
+        x = np.asarray(x, float).reshape(self.dim)
+        if gradient is None:
+            X, t = x[None], np.array([VALUE])
+            y, nv = np.array([float(value)]), np.array([float(value_noise_var)])
+        else:
+            Xg, tg = gradient_rows(x[None])
+            X, t = np.vstack([x, Xg]), np.r_[VALUE, tg]
+            y = np.r_[float(value), np.asarray(gradient, float).reshape(self.dim)]
+            nv = np.r_[float(value_noise_var), np.full(self.dim, float(gradient_noise_var))]
+        if not (np.isfinite(X).all() and np.isfinite(y).all() and np.isfinite(nv).all()) or (nv < 0).any():
+            raise ValueError("observation must be finite with noise variances >= 0")
+        resid = y - self._mu_a(X, t)
+        hit = [self.leaves[j] for j in self._leaves_overlapping(x, x, "d")]
+        act = [lf for lf in hit if lf.active]
+        # one cross-covariance for every active expert hit: the union of their rows
+        union = np.unique(np.concatenate([lf.rows for lf in act])) if act else np.zeros(0, np.int64)
+        K_union = cross_cov(self.kernel, self._X[union], self._t[union], X, t)
+        K22 = cross_cov(self.kernel, X, t, X, t)
+        states = [lf.gp.append(X, t, resid, nv, K_union[np.searchsorted(union, lf.rows)], K22) for lf in act]
+        i, r0 = self.n_obs, self.n_rows
+        self._X = np.vstack([self._X, X])
+        self._t = np.r_[self._t, t]
+        self._y = np.r_[self._y, y]
+        self._noise = np.r_[self._noise, nv]
+        self._resid = np.r_[self._resid, resid]
+        self._obs_pts = np.vstack([self._obs_pts, x])
+        self._obs_start.append(r0)
+        self._obs_len.append(len(t))
+        self.n_obs, self.n_rows = i + 1, r0 + len(t)
+        rows = np.arange(r0, r0 + len(t))
+        for lf in hit:
+            lf.rows = np.r_[lf.rows, rows]
+        nodes = np.unique(np.concatenate([lf.nodes for lf in act])) if act else np.zeros(0, np.int64)
+        K_nodes = cross_cov(self.kernel, self._lattice[nodes], np.full(len(nodes), VALUE), X, t)
+        for lf, st in zip(act, states):
+            lf.gp.commit(st)
+            lf.kc = np.hstack([lf.kc, K_nodes[np.searchsorted(nodes, lf.nodes)]])
+            self._update_contrib(lf)
+        owner = self._owner(x)
+        owner.own.append(i)
+        self._add_band_nodes(self._near_nodes(x))
+        if len(owner.own) > self.leaf_capacity and float((owner.hi - owner.lo).min()) >= 2 * self.min_leaf_m:
+            self._split(owner)
+        self._maybe_anchor(i, x)
+
+    def _maybe_anchor(self, i: int, x: np.ndarray) -> None:
+        cand = self._anchor_obs + self._pending
+        if len(cand) < self.max_anchors:
+            if not cand or np.min(((self._obs_pts[cand] - x) ** 2).sum(1)) > self.anchor_spacing_m ** 2:
+                self._pending.append(i)
+        if self._pending and (len(self._pending) >= max(1.0, self.anchor_batch * len(self._anchor_obs))
+                              or self.n_obs - 1 - self._pending[0] >= self.anchor_delay):
+            self._commit_anchors()
+
+    def _owner(self, x: np.ndarray) -> _Leaf:
+        """The leaf whose cell holds x (cells are half-open, closed at the root's top)."""
+        b = self._box_arrays()
+        top = b["hi"] >= self.bounds_m[1]
+        sel = np.flatnonzero(np.all((x >= b["lo"]) & ((x < b["hi"]) | ((x == b["hi"]) & top)), axis=1))
+        if len(sel):
+            return self.leaves[int(sel[0])]
+        gap = np.abs(np.clip(x, b["lo"], b["hi"]) - x).sum(1)
+        return self.leaves[int(np.argmin(gap))]
+
+    def _split(self, parent: _Leaf) -> None:
+        """Replace a leaf by its 2^d children (each activated only if the band needs it)."""
+        mid = parent.centre
+        kids = []
+        for code in range(2 ** self.dim):
+            bits = np.array([(code >> k) & 1 for k in range(self.dim)], bool)
+            kids.append(self._new_leaf(np.where(bits, mid, parent.lo), np.where(bits, parent.hi, mid),
+                                       parent.depth + 1))
+        P = self._obs_pts
+        starts, lens = np.asarray(self._obs_start), np.asarray(self._obs_len)
+        for kid in kids:
+            inbox = np.flatnonzero(np.all((P >= kid.dlo) & (P <= kid.dhi), axis=1))
+            kid.rows = (np.concatenate([np.arange(starts[j], starts[j] + lens[j]) for j in inbox])
+                        if len(inbox) else np.zeros(0, np.int64))
+        for j in parent.own:
+            for kid in kids:
+                if np.all((P[j] >= kid.lo) & ((P[j] < kid.hi) | ((P[j] == kid.hi) & (kid.hi >= self.bounds_m[1])))):
+                    kid.own.append(j)
+                    break
+            else:
+                kids[0].own.append(j)
+        if len(parent.nodes):  # swap the parent's band contribution for the children's
+            self._num[parent.nodes] -= parent.w * parent.contrib
+            self._wsum[parent.nodes] -= parent.w
+        self.leaves.remove(parent)
+        self.leaves.extend(kids)
+        self._boxes = None
+        band = np.flatnonzero(self._band)
+        Pb = self._lattice[band]
+        for kid in kids:
+            inside = np.all((Pb >= kid.blo) & (Pb <= kid.bhi), axis=1)
+            if inside.any():
+                self._leaf_add_nodes(kid, band[inside])
+
+    # -- outputs -----------------------------------------------------------------
+    def _band_mean(self) -> np.ndarray:
+        out = self._mu_a_lat.copy()
+        b = self._band
+        out[b] = self._mu_a_band[b] + self._num[b] / np.maximum(self._wsum[b], 1e-300)
+        return out
+
+    def lattice_mean(self) -> np.ndarray:
+        """(M,) mean on the lattice (C order): blended on the band, mu_A elsewhere.
+
+        The band is first closed: a lattice edge whose ends differ in sign and of which
+        only one end is in the band brings the other end in (repeated until none), so
+        every zero crossing of the published mean lies between two blended nodes.
+        """
+        for _ in range(8):
+            m = self._band_mean().reshape(self.shape)
+            band = self._band.reshape(self.shape)
+            add = np.zeros(self.shape, bool)
+            for ax in range(self.dim):
+                a = [slice(None)] * self.dim
+                b = [slice(None)] * self.dim
+                a[ax], b[ax] = slice(None, -1), slice(1, None)
+                a, b = tuple(a), tuple(b)
+                cross = (m[a] < 0) != (m[b] < 0)
+                add[a] |= cross & ~band[a] & band[b]
+                add[b] |= cross & band[a] & ~band[b]
+            if not add.any():
+                return m.ravel()
+            self._add_band_nodes(np.flatnonzero(add.ravel()))
+        return self._band_mean()
+
+    def lattice_variance(self) -> np.ndarray:
+        """(M,) the anchor GP's variance on the lattice (interpolated; an upper bound)."""
+        return np.maximum(self._var_a_lat, 0.0)
+
+    @property
+    def band_mask(self) -> np.ndarray:
+        return self._band.copy()
+
+    def predict(self, Xq: np.ndarray, return_var: bool = True, return_grad: bool = False):
+        """Blended posterior mean (and variance, and mean gradient) at (N, d) points.
+
+        Experts covering a query point are activated (built) if they were not yet."""
+        Xq = np.atleast_2d(np.asarray(Xq, float))
+        N, d = Xq.shape
+        if self.anchor.n:
+            mean_a, var_a = self.anchor.predict(Xq) if return_var else (self.anchor.predict(Xq, False), None)
+            grad_a = self.anchor.predict_gradient(Xq) if return_grad else None
+        else:
+            mean_a, var_a = self.mean_fn(Xq)[0], np.full(N, self.kernel.k0)
+            grad_a = self.mean_fn(Xq)[1] if return_grad else None
+        num, wsum, vnum = np.zeros(N), np.zeros(N), np.zeros(N)
+        gnum, gw = np.zeros((N, d)), np.zeros((N, d))
+        for j in self._leaves_overlapping(Xq.min(0), Xq.max(0), "b"):
+            lf = self.leaves[j]
+            sel = np.flatnonzero(np.all((Xq >= lf.blo) & (Xq <= lf.bhi), axis=1))
+            if not len(sel):
+                continue
+            if not lf.active:
+                self._activate(lf)
+            P = Xq[sel]
+            w, dw = lf.weight(P, grad=True)
+            if lf.gp.n:
+                K = cross_cov(self.kernel, lf.gp.X, lf.gp.t, P, np.full(len(P), VALUE))
+                r = K.T @ lf.gp.alpha
+                if return_var:
+                    V = lower_solve(lf.gp.L, K)
+                    v = self.kernel.k0 - np.einsum("ij,ij->j", V, V)
+                if return_grad:
+                    Xg, tg = gradient_rows(P)
+                    dr = (cross_cov(self.kernel, lf.gp.X, lf.gp.t, Xg, tg).T @ lf.gp.alpha).reshape(len(P), d)
+            else:
+                r, v, dr = np.zeros(len(P)), np.full(len(P), self.kernel.k0), np.zeros((len(P), d))
+            num[sel] += w * r
+            wsum[sel] += w
+            if return_var:
+                vnum[sel] += w * v
+            if return_grad:
+                gnum[sel] += dw * r[:, None] + w[:, None] * dr
+                gw[sel] += dw
+        wsum = np.maximum(wsum, 1e-300)
+        out = [mean_a + num / wsum]
+        if return_var:
+            out.append(np.maximum(np.minimum(var_a, vnum / wsum), 0.0))
+        if return_grad:
+            out.append(grad_a + gnum / wsum[:, None] - (num / wsum ** 2)[:, None] * gw)
+        return out[0] if len(out) == 1 else tuple(out)
+
+    def predict_gradient(self, Xq: np.ndarray) -> np.ndarray:
+        """(N, d) gradient of the blended mean."""
+        return self.predict(Xq, return_var=False, return_grad=True)[1]
