@@ -108,3 +108,40 @@ def test_descriptors_carry_ranges_and_read_only():
     assert (r.from_value, r.to_value, d.read_only) == (0.0, 1.0, False)
     d = descriptor(spec("s", ("a", "s", Rule(choices=("a", "b")))), Parameter.Type.STRING.value)
     assert not d.floating_point_range and not d.integer_range and "one of 'a', 'b'" in d.additional_constraints
+
+
+def test_every_package_params_file_names_only_declared_parameters():
+    """A key a node does not declare is silently ignored by rclpy: none may sit in our config files."""
+    from pathlib import Path
+
+    from tactile_bringup.param_checks import check_files
+
+    root = Path(__file__).resolve().parents[2]
+    files = [f for f in sorted(root.glob("src/*/config/*.yaml")) if "ros__parameters" in f.read_text()]
+    assert len(files) >= 8
+    assert check_files(files) == []
+
+
+@pytest.mark.parametrize("yaml_text, expected", [
+    ("gpis_estimator:\n  ros__parameters:\n    workspace:\n      max_m: [0.65, 0.15, 0.0]\n",
+     "an empty box (max must exceed min on every axis; not on z)"),
+    ("gpis_estimator:\n  ros__parameters:\n    kernel:\n      R_m: 0.1\n",
+     "gpis_estimator.kernel.R_m = 0.1: must be 0 (auto) or at least the workspace diagonal"),
+    ("gpis_estimator:\n  ros__parameters:\n    plane_z_m: 0.5\n",
+     "gpis_estimator.plane_z_m = 0.5: must lie in the workspace's z range [0, 0.22]"),
+    ("/**:\n  ros__parameters:\n    start_tip_xyz_m: [0.33, 0.0, 0.005]\n",
+     "z must be at least table_z_m + table_margin_m + tip_radius_m = 0.015 m"),
+    ("tactile_sensor:\n  ros__parameters:\n    reconnect_min_s: 5.0\n",
+     "tactile_sensor.reconnect_min_s = 5.0: must not exceed reconnect_max_s = 2.0"),
+    ("soc_planner:\n  ros__parameters:\n    margin_m: 0.05\n",
+     "soc_planner.margin_m = 0.05: must be below standoff_m + tip_radius_m = 0.02 m"),
+])
+def test_contradictions_are_named(tmp_path, yaml_text, expected):
+    from tactile_bringup.experiment import Experiment
+    from tactile_bringup.param_checks import ParamsError
+
+    f = tmp_path / "user.yaml"
+    f.write_text(yaml_text)
+    with pytest.raises(ParamsError) as info:
+        Experiment(mode="2d", user_params_files=[f])
+    assert len(info.value.errors) == 1 and expected in info.value.errors[0], info.value.errors
