@@ -116,6 +116,9 @@ class ContactDetector:
         self.in_contact = False
         self.force_n = 0.0
         self.n_active = 0
+        #: The latest estimate while in contact (every frame, not only the onset; None out of
+        #: contact): what a slide's tactile servo reads each control tick.
+        self.current: Optional[ContactEstimate] = None
 
     @property
     def calibrated(self) -> bool:
@@ -134,6 +137,7 @@ class ContactDetector:
         """Collect a new baseline from the next frames (the finger must be free)."""
         self._calib = []
         self.in_contact = False
+        self.current = None
 
     def update(self, values: np.ndarray) -> Optional[ContactEstimate]:
         """Process one frame of raw counts; the estimate at a contact onset, else None.
@@ -161,8 +165,22 @@ class ContactDetector:
         if self.in_contact:
             if self.force_n < self.config.off_threshold_n:
                 self.in_contact = False
+                self.current = None
+            else:
+                self.current = self._locate(signal, active) or self.current
             return None
         if self.force_n < self.config.on_threshold_n or self.n_active < self.config.min_active_taxels:
+            return None
+        est = self._locate(signal, active)
+        if est is None:
+            return None
+        self.in_contact = True
+        self.current = est
+        return est
+
+    def _locate(self, signal: np.ndarray, active: np.ndarray) -> Optional[ContactEstimate]:
+        """Steps 5-6 of the module docstring on one frame's signal (None: no direction)."""
+        if not active.any():
             return None
         w = signal[active]
         centre = (w @ self.layout.positions_m[active]) / w.sum()
@@ -173,7 +191,6 @@ class ContactDetector:
             return None  # a pressure centroid on the axis has no direction
         if self.layout.hemisphere and centre[2] >= self.layout.axis_z_range_m[1] - self.config.rim_margin_m:
             normal = np.full_like(normal, np.nan)  # on the rim: the surface's slope is not sensed
-        self.in_contact = True
         return ContactEstimate(point_m=point[0], finger_normal=normal[0], force_n=self.force_n, n_active=self.n_active)
 
     def _finish_calibration(self) -> None:
