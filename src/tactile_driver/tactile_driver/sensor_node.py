@@ -24,6 +24,7 @@ from tactile_common import fields, qos, topics
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import to_pointcloud2
+from tactile_common.rotations import xyzw
 from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
@@ -93,7 +94,7 @@ class TactileSensorNode(Node):
     def _on_pose(self, msg: PoseStamped) -> None:
         t = stamp_s(msg.header.stamp)
         pp, q = msg.pose.position, msg.pose.orientation
-        completed = self.driver.add_pose(t, [pp.x, pp.y, pp.z], [q.x, q.y, q.z, q.w])
+        completed = self.driver.add_pose(t, [pp.x, pp.y, pp.z], xyzw(q))
         if completed is None:
             self._invalid_poses += 1
             self.get_logger().warn("ignored a fingertip pose (out of order or not finite)", throttle_duration_sec=5.0)
