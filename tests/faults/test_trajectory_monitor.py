@@ -123,7 +123,7 @@ def test_a_start_away_from_the_measured_state_is_a_jump(monitor):
     assert {v.kind for v in late} >= {"velocity"}
 
 
-@pytest.mark.parametrize("case", ["names", "nan", "times", "shape", "positions_only"])
+@pytest.mark.parametrize("case", ["names", "nan", "times", "shape", "ragged", "positions_only"])
 def test_malformed_trajectories_are_violations(monitor, case):
     traj = _planned(monitor)
     names, t, q, qd = list(NAMES), traj.times_s.copy(), traj.positions_rad.copy(), traj.velocities_rad_s.copy()
@@ -135,6 +135,9 @@ def test_malformed_trajectories_are_violations(monitor, case):
         t[4] = t[3]
     elif case == "shape":
         qd = qd[:, :6]
+    elif case == "ragged":
+        q = [list(row) for row in q]
+        q[2] = q[2][:6]
     else:
         qd = None
     found = _fresh(monitor).check(names, t, q, qd)

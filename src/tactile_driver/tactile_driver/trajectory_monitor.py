@@ -107,10 +107,13 @@ class TrajectoryMonitor:
         if sorted(names) != sorted(self.model.joint_names) or len(set(names)) != nq:
             return [_bad(f"joint names {names}, expected the set {list(self.model.joint_names)}")]
         perm = [names.index(j) for j in self.model.joint_names]
-        q = np.asarray(positions, dtype=float)
+        try:
+            q = np.asarray(positions, dtype=float).reshape(len(t), -1)
+            qd = None if velocities is None or np.size(velocities) == 0 else np.asarray(velocities, dtype=float)
+        except ValueError as exc:  # ragged: points with different numbers of values
+            return [_bad(f"positions or velocities do not form a (K, n) array: {exc}")]
         if q.shape != (len(t), nq):
             return [_bad(f"positions have shape {q.shape}, expected {(len(t), nq)}")]
-        qd = None if velocities is None or np.size(velocities) == 0 else np.asarray(velocities, dtype=float)
         if qd is not None and qd.shape != q.shape:
             return [_bad(f"velocities have shape {qd.shape}, expected {q.shape}")]
         if not (np.isfinite(t).all() and np.isfinite(q).all() and (qd is None or np.isfinite(qd).all())):
