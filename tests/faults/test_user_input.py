@@ -65,7 +65,7 @@ def _explore(tmp_path: Path, *args) -> subprocess.CompletedProcess:
     (["--alpha", "-1"], "--alpha -1.0: must be ≥ 0 (soc_planner.alpha)"),
     (["--real-time-factor", "0"], "--real-time-factor 0.0: must be > 0 (sim_rig.real_time_factor)"),
     (["--real-time-factor", "nan"], "--real-time-factor: 'nan' is not a finite number"),
-    (["--strategy", "greedy"], "--strategy greedy: must be one of 'proposed'"),
+    (["--strategy", "greedy"], "--strategy greedy: unknown strategy; must be one of 'proposed'"),
     (["--seed", "-1"], "--seed -1: must be ≥ 0"),
     (["--mode", "4d"], "argument --mode: invalid choice: '4d'"),
     (["--touches"], "--touches needs a value"),
