@@ -57,9 +57,9 @@ def _circle_run(mode="2d", n=8, reachable=False):
     return report, est, obj
 
 
-def _is_png(path):
+def _is_png(path, min_bytes=20_000):
     data = path.read_bytes()
-    return data[:8] == PNG and len(data) > 20_000
+    return data[:8] == PNG and len(data) > min_bytes
 
 
 def test_2d_progress_figure_and_its_crossings(tmp_path):
@@ -144,6 +144,19 @@ def test_band_median_and_quartiles_by_hand():
     assert b.grid[-1] == pytest.approx(max(r["touches"][-1]["travel_m"] for r in runs))
 
 
+def test_band_without_a_prior_starts_at_the_first_touches():
+    """Two runs without a recorded prior of the reachable IoU: no value before either's first
+    touch, one run's value between the first touches, the median of both after."""
+    runs = [{"summary": {}, "touches": [{"travel_m": 1.0, "time_s": 1.0, "iou_reachable": 0.4},
+                                        {"travel_m": 3.0, "time_s": 2.0, "iou_reachable": 0.8}]},
+            {"summary": {}, "touches": [{"travel_m": 2.0, "time_s": 1.0, "iou_reachable": 0.6}]}]
+    b = figure_data.band(runs, "travel_m", "iou_reachable", points=7)  # grid 0, 0.5, ..., 3
+    assert np.isnan(b.median[:2]).all()
+    assert b.median[2:4].tolist() == [0.4, 0.4]
+    assert b.median[4:6].tolist() == pytest.approx([0.5, 0.5])
+    assert b.median[6] == pytest.approx(0.7)
+
+
 def test_strategy_figures_and_gallery(tmp_path):
     runs = []
     for fam in ("convex", "concave"):
@@ -155,6 +168,9 @@ def test_strategy_figures_and_gallery(tmp_path):
     assert {figure_data.group_key(r) for r in runs} == {"convex", "concave"}
     assert _is_png(plots.plot_strategies(runs, tmp_path / "t.png", "travel_m"))
     assert _is_png(plots.plot_strategies(runs, tmp_path / "s.png", "time_s"))
+    reach, _, _ = _circle_run("2d", n=5, reachable=True)
+    assert _is_png(plots.plot_strategies([reach] * 3, tmp_path / "r.png", "travel_m", "iou_reachable",
+                                         group=lambda r: "one panel"), min_bytes=8_000)
     circle = make_object("circle", mode="2d").surface_samples(0.002)
     assert plots.plot_gallery([("a\nIoU 0.9", circle, circle)] * 3, tmp_path / "g.png").stat().st_size > 5000
 
@@ -166,6 +182,10 @@ def test_bad_input_is_named(tmp_path):
         figure_data.step_curve({"touches": [], "summary": {}}, "laps")
     with pytest.raises(ValueError, match="at least one run"):
         plots.plot_strategies([], tmp_path / "x.png")
+    with pytest.raises(ValueError, match="y_key must be one of"):
+        plots.plot_strategies([{"touches": []}], tmp_path / "x.png", y_key="laps")
+    with pytest.raises(ValueError, match="cols must be at least 1"):
+        plots.plot_gallery([("a", np.zeros((0, 2)), np.zeros((0, 2)))], tmp_path / "x.png", cols=-1)
 
 
 def test_path_record_is_the_followed_part():

@@ -293,10 +293,17 @@ def write_summary(runs: Sequence[dict], out: Path, mode: str, shapes: Sequence =
           f"{reachable_sections(runs)}\n"
           f"## Per object (raw IoU, medians over seeds)\n\n{summary_table(runs)}")
     (out / "summary.md").write_text(md)
-    plots.plot_strategies(runs, out / "iou_vs_travel.png", "travel_m")
-    plots.plot_strategies(runs, out / "iou_vs_time.png", "time_s")
+    # panels per family for a generated suite, per object for the catalogue
+    panel = (lambda r: family_of(r["object"])) if any(family_of(r["object"]) != "builtin" for r in runs) \
+        else plots.group_key
+    plots.plot_strategies(runs, out / "iou_vs_travel.png", "travel_m", group=panel)
+    plots.plot_strategies(runs, out / "iou_vs_time.png", "time_s", group=panel)
+    if all(plots.iou_keys(r) == ["iou", "iou_reachable"] for r in runs):
+        plots.plot_strategies(runs, out / "iou_reachable_vs_travel.png", "travel_m", "iou_reachable", panel)
+        plots.plot_strategies(runs, out / "iou_reachable_vs_time.png", "time_s", "iou_reachable", panel)
     if shapes:
-        plots.plot_gallery(sorted(shapes, key=lambda s: s[0]), out / "gallery.png")
+        plots.plot_gallery(sorted(shapes, key=lambda s: s[0]), out / "gallery.png",
+                           cols=len({r["strategy"] for r in runs}))  # one object per row
     return md
 
 

@@ -6,7 +6,9 @@
   report's summary counts it.
 - Bands over runs: each run's step curve sampled on a common grid (a run
   keeps its final IoU after it ended, as the budget table counts it), then
-  the median and the 25th/75th percentiles at each grid point.
+  the median and the 25th/75th percentiles at each grid point over the runs
+  that have a value there (a curve without a recorded prior starts at its
+  first touch).
 - Touch geometry: the followed path, the approach segment and the observed
   point of each touch, in order (world frame, metres).
 """
@@ -59,9 +61,11 @@ def crossing(x: np.ndarray, y: np.ndarray, level: float) -> Optional[tuple[float
 
 
 def sample_step(x: np.ndarray, y: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """The step curve's value at each grid point: y of the last x ≤ grid (y[0] before x[0])."""
+    """The step curve's value at each grid point: y of the last x ≤ grid (NaN before x[0])."""
     idx = np.searchsorted(np.asarray(x), np.asarray(grid), side="right") - 1
-    return np.asarray(y)[np.clip(idx, 0, len(y) - 1)]
+    out = np.asarray(y, dtype=float)[np.clip(idx, 0, len(y) - 1)]
+    out[idx < 0] = np.nan
+    return out
 
 
 @dataclass(frozen=True)
@@ -85,7 +89,9 @@ def band(reports: Sequence[dict], x_key: str = "travel_m", y_key: str = "iou", p
     top = max(float(c[0][-1]) for c in curves) if x_max is None else float(x_max)
     grid = np.linspace(0.0, max(top, 1e-9), int(points))
     Y = np.stack([sample_step(x, y, grid) for x, y in curves])
-    q25, med, q75 = np.percentile(Y, [25, 50, 75], axis=0)
+    q25, med, q75 = np.full((3, len(grid)), np.nan)
+    some = ~np.all(np.isnan(Y), axis=0)  # before every run's first point (no prior): nothing
+    q25[some], med[some], q75[some] = np.nanpercentile(Y[:, some], [25, 50, 75], axis=0)
     return Band(grid, med, q25, q75, len(reports))
 
 

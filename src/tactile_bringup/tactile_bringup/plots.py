@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Callable, Optional, Sequence
 
 import matplotlib
 
@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from .figure_data import LEVELS, band, group_key  # noqa: E402
+from .figure_data import IOU_KEYS, LEVELS, band, group_key, iou_keys  # noqa: E402,F401 (re-exported)
 
 
 def plot_progress(report: dict, path: Path, estimate_xy: Optional[np.ndarray] = None,
@@ -45,18 +45,22 @@ def plot_progress(report: dict, path: Path, estimate_xy: Optional[np.ndarray] = 
     return path
 
 
-def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m", y_key: str = "iou") -> Path:
+def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m", y_key: str = "iou",
+                    group: Callable[[dict], str] = group_key) -> Path:
     """IoU against travel (or time) per strategy: the median over runs and the inter-quartile band.
 
-    One panel per family when the runs carry a ``family`` field, else per object,
-    and a first panel over every run when there are several. A run keeps its final
-    IoU after it ended (as the benchmark's budget table counts it).
+    One panel per ``group(run)`` (default: the run's ``family`` field, else its
+    object), and a first panel over every run when there are several. A run keeps
+    its final IoU after it ended (as the benchmark's budget table counts it).
+    ``y_key``: ``iou`` or ``iou_reachable`` (every touch must carry it).
     """
     if not runs:
         raise ValueError("plot_strategies needs at least one run")
-    groups = sorted({group_key(r) for r in runs})
+    if y_key not in IOU_KEYS:
+        raise ValueError(f"y_key must be one of {sorted(IOU_KEYS)}, got '{y_key}'")
+    groups = sorted({group(r) for r in runs})
     panels = ([("all runs", list(runs))] if len(groups) > 1 else []) + \
-        [(g, [r for r in runs if group_key(r) == g]) for g in groups]
+        [(g, [r for r in runs if group(r) == g]) for g in groups]
     strategies = sorted({r["strategy"] for r in runs})
     colours = {s: f"C{i}" for i, s in enumerate(strategies)}
     cols = min(4, len(panels))
@@ -79,7 +83,7 @@ def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m", y_k
         ax.set_xlim(0, x_max)
         ax.grid(alpha=0.3)
         ax.set_xlabel("fingertip travel (m)" if key == "travel_m" else "robot time (s)", fontsize=8)
-        ax.set_ylabel("IoU" if y_key == "iou" else "IoU (finger-reachable)", fontsize=8)
+        ax.set_ylabel(IOU_KEYS[y_key], fontsize=8)
         ax.tick_params(labelsize=7)
     for ax in axes.ravel()[len(panels):]:
         ax.axis("off")
@@ -90,18 +94,28 @@ def plot_strategies(runs: Sequence[dict], path: Path, key: str = "travel_m", y_k
     return Path(path)
 
 
-def plot_gallery(shapes: Sequence[tuple[str, np.ndarray, np.ndarray]], path: Path) -> Path:
+def plot_gallery(shapes: Sequence[tuple[str, np.ndarray, np.ndarray]], path: Path,
+                 cols: Optional[int] = None) -> Path:
     """Final estimated shapes (orange) over the true ones (black), top view in 3D:
-    (title, estimate_xy, truth_xy) per panel."""
+    (title, estimate_xy, truth_xy) per panel, ``cols`` per row (default up to 5; the
+    benchmark passes its number of strategies: one object per row). Each panel shows
+    the truth's box plus 30 % on each side (an estimate beyond it is cut)."""
     if not shapes:
         raise ValueError("plot_gallery needs at least one shape")
-    cols = min(5, len(shapes))
+    cols = int(cols) if cols else min(5, len(shapes))
+    if cols < 1:
+        raise ValueError(f"cols must be at least 1, got {cols}")
     rows = int(np.ceil(len(shapes) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3 * cols, 3 * rows), squeeze=False)
+    size = 3.0 if rows <= 6 else 2.2
+    fig, axes = plt.subplots(rows, cols, figsize=(size * cols, size * rows), squeeze=False)
     for ax, (title, est, truth) in zip(axes.ravel(), shapes):
         est, truth = np.asarray(est, dtype=float), np.asarray(truth, dtype=float)
         if len(truth):
             ax.plot(truth[:, 0], truth[:, 1], ".", ms=1.2, color="k")
+            lo, hi = truth[:, :2].min(0), truth[:, :2].max(0)
+            centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo).max() * 1.3
+            ax.set_xlim(centre[0] - half, centre[0] + half)
+            ax.set_ylim(centre[1] - half, centre[1] + half)
         if len(est):
             ax.plot(est[:, 0], est[:, 1], ".", ms=0.9, color="tab:orange")
         ax.set_aspect("equal")
