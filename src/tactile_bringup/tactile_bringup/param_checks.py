@@ -37,7 +37,7 @@ NODE_TABLES: dict[str, tuple[tuple[str, str], ...]] = {
     "arm_commander": (("tactile_driver.commander_node", "PARAMS"),),
     "sim_rig": (("tactile_sim.rig_node", "PARAMS"),),
     "sim_sensor_device": (("tactile_sim.sensor_device_node", "PARAMS"),),
-    "explorer": (("tactile_bringup.explorer_node", "PARAMS"), ("tactile_bringup.experiment", "RUN_PARAMETERS")),
+    "explorer": (("tactile_bringup.experiment", "RUN_PARAMETERS"), ("tactile_bringup.explorer_node", "PARAMS")),
     "recorder": (("tactile_bringup.recorder_node", "PARAMS"), ("tactile_bringup.param_checks", "RECORDER_LISTS")),
     "player": (("tactile_bringup.player_node", "PARAMS"), ("tactile_bringup.param_checks", "PLAYER_LISTS")),
 }
@@ -82,7 +82,13 @@ def all_tables() -> dict[str, dict[str, tuple]]:
 
 
 def param_spec(node: str, name: str) -> ParamSpec:
-    return spec(name, node_table(node)[name])
+    """One parameter's entry; imports the node's modules only up to the table that has it
+    (``--touches`` needs the experiment's table, not the explorer node's imports)."""
+    for module, attr in NODE_TABLES[node]:
+        table = getattr(importlib.import_module(module), attr)
+        if name in table:
+            return spec(name, table[name])
+    raise KeyError(f"{node} has no parameter '{name}'")
 
 
 def check_cli(option: str, value: Any) -> Optional[str]:
