@@ -69,6 +69,7 @@ class Experiment:
     seed: int = 0
     touches: Optional[int] = None
     user_params_files: Sequence[Path] = field(default_factory=list)
+    touch: Optional[str] = None  # 'poke' | 'slide' (soc_planner.touch; None: the files')
 
     #: the explorer's run parameters (see :data:`RUN_PARAMETERS`)
     RUN_PARAMETERS = RUN_PARAMETERS
@@ -128,6 +129,8 @@ class Experiment:
             o["soc_planner"]["strategy"] = self.strategy
         if self.alpha is not None:
             o["soc_planner"]["alpha"] = float(self.alpha)
+        if getattr(self, "touch", None) is not None:
+            o["soc_planner"]["touch"] = str(self.touch)
         o["explorer"] = {}
         if self.touches is not None:
             o["explorer"]["touches"] = int(self.touches)

@@ -30,7 +30,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     def body() -> int:
         exp = Experiment(mode=args.mode, object_name=args.object, strategy=args.strategy, alpha=args.alpha,
-                         seed=args.seed, touches=args.touches, user_params_files=args.params)
+                         seed=args.seed, touches=args.touches, user_params_files=args.params, touch=args.touch)
         loop = ExplorationLoop(exp)
         print(f"exploring '{exp.object_name}' ({exp.mode}) with '{exp.strategy}', seed {exp.seed}, "
               f"{exp.touches} touches", file=sys.stderr)

@@ -50,11 +50,15 @@ def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
 
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
                  time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
-                 path_xyz=None, path_followed_m: Optional[float] = None) -> dict:
+                 path_xyz=None, path_followed_m: Optional[float] = None, slide=None) -> dict:
     """The report entry of one touch, with metrics of the estimate after it.
 
     ``path_xyz`` (K, 3): the free-space path from the tip to the pre-touch point
     (world frame), recorded as ``path`` (see :func:`_path_record`) for the figures.
+    ``slide`` (a :class:`tactile_sim.slide.SlideResult`, or None for a poke): its
+    slid length ``slide_m``, why it stopped ``slide_stop`` and its contacts
+    ``slide_contacts`` (K, 3, 0.1 mm); ``contacts_gathered`` counts the touch's
+    contacts (a poke: 1 or 0).
     """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
@@ -73,6 +77,11 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "decision_ms": float(decision_ms),
         "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,
         "path": _path_record(path_xyz, path_followed_m),
+        "touch": "poke" if slide is None else "slide",
+        "slide_m": None if slide is None else float(slide.slid_m),
+        "slide_stop": None if slide is None else slide.stop.value,
+        "slide_contacts": None if slide is None else np.round(slide.points_xyz, 4).tolist(),
+        "contacts_gathered": int(contact) + (0 if slide is None else slide.n_contacts),
     }
 
 

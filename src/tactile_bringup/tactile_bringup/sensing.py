@@ -20,6 +20,8 @@ from tactile_driver.contact import ContactConfig, ContactDetector, back_off_targ
 from tactile_driver.taxels import TaxelLayout, load_layout
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
+from tactile_driver.slide_servo import ContactThinner, SlideServo, SlideServoConfig
+from tactile_sim.slide import SlideResult, simulate_slide
 
 
 def _dataclass_from(cls, params: Mapping[str, Any], prefix: str = ""):
@@ -49,6 +51,8 @@ class SimulatedFinger:
     seed: int
     path_step_m: float = 0.0005  # tip travel per sensor frame on a free-space path (tip speed / frame rate)
     back_off_m: float = 0.02  # tip centre to a contact after backing off (tip radius + standoff)
+    servo: SlideServoConfig = SlideServoConfig()  # slides: the commander's servo parameters ('slide.' prefix)
+    box_m: Optional[np.ndarray] = None  # slides: (2, 3) box the tip centre stays in (the estimator's workspace)
 
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
@@ -64,7 +68,30 @@ class SimulatedFinger:
         max_travel_m = geometry.approach_length_m
         path_step_m = float(planner.get("tip_speed_mps", 0.1)) / frame_rate_hz
         back_off_m = geometry.pretouch_offset_m
-        return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m)
+        servo = SlideServoConfig.from_params({**experiment.arm_params, "slide.slide_speed_mps":
+                                              planner.get("slide_speed_mps", 0.02)}, "slide.")
+        g = experiment.gpis_params
+        box = np.array([g["workspace.min_m"], g["workspace.max_m"]], dtype=float)
+        return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m,
+                   servo, box)
+
+    def slide(self, approach: ApproachResult, direction_xyz: np.ndarray, length_m: float,
+              touch_index: int) -> tuple[SlideResult, np.ndarray]:
+        """Slide on from an approach's contact (the servo of :mod:`tactile_driver.slide_servo`), then
+        back off ``back_off_m`` from the last contact; returns (the slide, the tip after backing off)."""
+        rng = np.random.default_rng([self.seed, touch_index, 2])
+        box = self.box_m if self.box_m is not None else np.array([[-np.inf] * 3, [np.inf] * 3])
+        servo = SlideServo(self.servo, direction_xyz, length_m, box[0], box[1], planar=self.obj.dim == 2)
+        thinner = ContactThinner(self.servo.thin_distance_m, self.servo.thin_angle_rad)
+        result = simulate_slide(self.obj, self.model, self.detector, servo, thinner, approach.tip_xyz_at_stop,
+                                rng=rng)
+        end = result.tip_path_xyz[-1]
+        last = result.points_xyz[-1] if result.n_contacts else approach.point_xyz
+        back = back_off_target(last, end, self.back_off_m)
+        if back is None:
+            back = end
+        self.detector.update(self.model.frame(self.obj, back, np.eye(3), rng))  # off the surface: release
+        return result, back
 
     def approach(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, touch_index: int) -> ApproachResult:
         """One guarded approach from the pre-touch point; the noise is seeded per touch."""

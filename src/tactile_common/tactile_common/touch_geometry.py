@@ -18,7 +18,9 @@ estimated surface with outward unit normal ``n``:
 
 Time (:class:`MotionModel`): the free-space path at ``tip_speed_mps``, the
 approach and retract (or back-off) at ``approach_speed_mps``, plus
-``dwell_s`` at the end of an approach.
+``dwell_s`` at the end of an approach; a **slide** after the approach's
+contact adds its slid length at ``slide_speed_mps`` and ends with a back-off
+(``slide_time_s``).
 """
 
 from __future__ import annotations
@@ -86,6 +88,7 @@ class MotionModel:
     tip_speed_mps: float = 0.10
     approach_speed_mps: float = 0.02
     dwell_s: float = 0.5
+    slide_speed_mps: float = 0.02
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "MotionModel":
@@ -95,6 +98,12 @@ class MotionModel:
     def touch_time_s(self, path_m: float, approach_m: float) -> float:
         """Time of one touch: path, approach and retract (approach_m each way), dwell."""
         return path_m / self.tip_speed_mps + 2.0 * approach_m / self.approach_speed_mps + self.dwell_s
+
+    def slide_time_s(self, path_m, approach_m, slide_m, retract_m):
+        """Time of a slide touch: path, approach, dwell at contact, slide at ``slide_speed_mps``,
+        retract (back-off) at approach speed. Arrays broadcast (the planner's candidates)."""
+        return (np.asarray(path_m) / self.tip_speed_mps + (np.asarray(approach_m) + np.asarray(retract_m))
+                / self.approach_speed_mps + np.asarray(slide_m) / self.slide_speed_mps + self.dwell_s)
 
     def path_contact_time_s(self, path_m: float, back_off_m: float) -> float:
         """Time of a touch whose path met the object: path to the contact, back-off at approach speed."""

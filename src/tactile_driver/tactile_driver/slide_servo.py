@@ -21,7 +21,9 @@ tangent steps) reaches the planned length, when the contact is weak or lost
 for ``lost_ticks`` ticks in a row (an edge, a corner it cannot wrap), when the
 force exceeds ``max_force_n`` (the band's top: the finger is jammed, e.g. in
 a concave corner narrower than the tip), when the next target would leave
-the workspace box, or after ``max_ticks``. The e-stop and the joint-state
+the workspace box, when the contact returns within ``lap_radius_m`` of the
+slide's first firm contact after sliding 4× that radius or more (a closed
+contour has been sensed all round; 0 = off), or after ``max_ticks``. The e-stop and the joint-state
 watchdog stay the commander's (they stop every motion, a slide included).
 
 :class:`ContactThinner` keeps the contacts worth publishing from the per-tick
@@ -54,6 +56,7 @@ class SlideStop(enum.Enum):
     FORCE = "force"  # the force exceeded the band's top (jammed)
     BOX = "box"  # the next target would leave the workspace box
     TICKS = "ticks"  # max_ticks reached (no progress)
+    LAP = "lap"  # the contact came back to where the slide began (a closed contour: all of it sensed)
 
 
 @dataclass(frozen=True)
@@ -70,6 +73,7 @@ class SlideServoConfig:
     lost_ticks: int = 30
     thin_distance_m: float = 0.005
     thin_angle_rad: float = 0.25
+    lap_radius_m: float = 0.005
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "") -> "SlideServoConfig":
@@ -90,6 +94,8 @@ class SlideServoConfig:
         if not 0 <= self.min_force_n < self.target_force_n < self.max_force_n:
             raise ValueError(f"slide servo force band: need 0 ≤ min_force_n ({self.min_force_n}) < target_force_n "
                              f"({self.target_force_n}) < max_force_n ({self.max_force_n})")
+        if not self.lap_radius_m >= 0:
+            raise ValueError(f"slide servo lap_radius_m = {self.lap_radius_m}: must be ≥ 0")
         if self.lost_ticks < 1:
             raise ValueError(f"slide servo lost_ticks = {self.lost_ticks}: must be ≥ 1")
         if not self.thin_angle_rad > 0:
@@ -147,6 +153,12 @@ class SlideServo:
         self.max_ticks = int(max_ticks) if max_ticks is not None else \
             int(np.ceil(3.0 * self.length_m / self.config.step_m)) + 10 * self.config.lost_ticks
         self.stopped: Optional[SlideStop] = None
+        self.first_point: Optional[np.ndarray] = None  # first firm contact (the lap rule)
+
+    @property
+    def duration_s(self) -> float:
+        """Robot time of the slide so far: ticks / control_rate_hz."""
+        return self.ticks / self.config.control_rate_hz
 
     def _flat(self, v: np.ndarray) -> np.ndarray:
         if self.planar:
@@ -181,6 +193,13 @@ class SlideServo:
             return self._stop(SlideStop.LOST)
         if self.ticks > self.max_ticks:
             return self._stop(SlideStop.TICKS)
+        if not weak and cfg.lap_radius_m > 0:
+            p = np.asarray(contact.point_xyz, dtype=float).reshape(3)
+            if self.first_point is None:
+                self.first_point = p
+            elif self.slid_m >= 4.0 * cfg.lap_radius_m and \
+                    float(np.linalg.norm(self._flat(p - self.first_point))) < cfg.lap_radius_m:
+                return self._stop(SlideStop.LAP)
         t = _unit(self._flat(self.tangent - float(self.tangent @ n) * n))
         if t is not None:
             self.tangent = t

@@ -30,7 +30,8 @@ class SlideResult:
     (K, 3), (K,), in the order sensed; ``tip_path_xyz`` (T, 3): the tip centre
     at every tick, from the start; ``slid_m``: the servo's slid length (sum of
     tangent steps); ``travel_m``: tip path length; ``stop``: why it ended;
-    ``forces_all_n``: the force of every tick in contact (for tests).
+    ``forces_all_n``: the force of every tick in contact (for tests);
+    ``duration_s``: robot time of the slide (ticks / control rate).
     """
 
     points_xyz: np.ndarray
@@ -41,6 +42,7 @@ class SlideResult:
     travel_m: float
     stop: SlideStop
     forces_all_n: np.ndarray
+    duration_s: float = 0.0
 
     @property
     def n_contacts(self) -> int:
@@ -100,4 +102,4 @@ def simulate_slide(obj: Any, model: SensorModel, detector: ContactDetector, serv
     P = np.asarray(path)
     travel = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) if len(P) > 1 else 0.0
     return SlideResult(np.asarray(pts).reshape(-1, 3), np.asarray(nrm).reshape(-1, 3), np.asarray(frc),
-                       P, float(servo.slid_m), travel, step.stop, np.asarray(f_all))
+                       P, float(servo.slid_m), travel, step.stop, np.asarray(f_all), servo.duration_s)

@@ -1,0 +1,194 @@
+"""Slide candidates and their value: where to start a slide, which way, how far (ROS-free).
+
+World frame, metres, seconds. A candidate slide starts at a touch candidate
+``c_i`` (a point of the estimated surface μ = 0 with outward normal n_i) and
+runs along the estimated surface in one of two directions ``±t_i`` (2D:
+t_i = z × n_i, the contour tangent; 3D: the horizontal tangent, the same
+formula). Its path is traced on the estimator's lattice: from x_0 = c_i,
+step ``trace_step_m`` along the tangent, then two Newton steps back onto
+μ = 0 (x ← x − μ ∇μ/|∇μ|², μ and ∇μ bilinear/trilinear on the lattice), and
+carry the tangent over: t ← normalize(t − (t·n̂)n̂) with n̂ = ∇μ/|∇μ|. A
+trace ends where it leaves the lattice, loses the gradient or fails to
+return to μ = 0 within one step.
+
+Value of the first s = k·h metres (k steps of length h): the uncertainty it
+would remove, G_k = Σ_{j ≤ k} max(σ²(x_j) − ``known_var_m2``, 0)·h (the
+variance integrated along the path, m³), per second of robot time
+
+    T_k = travel_i / tip_speed + (approach + retract) / approach_speed + dwell + s / slide_speed
+
+(the travel to the start is the LMDP path length of the same solve as the
+pokes; approach and retract are a standoff each). The chosen slide is the
+(candidate, direction, length) with the highest G_k / T_k over
+``slide_min_length_m`` ≤ s ≤ ``slide_max_length_m``: a long slide is chosen
+where the variance stays high along the way, a short one where the path
+runs into known surface. Cost O(M·K) lattice interpolations for M
+candidates and K = max length / step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+from tactile_common.touch_geometry import MotionModel
+
+from .maps import MapLattice
+
+
+@dataclass(frozen=True)
+class SlideParams:
+    max_length_m: float = 0.3
+    min_length_m: float = 0.02
+    trace_step_m: float = 0.003
+    known_var_m2: float = 0.0
+
+    @classmethod
+    def from_params(cls, p: Mapping[str, Any]) -> "SlideParams":
+        """From the planner's parameters (``slide_max_length_m``, ``slide_min_length_m``,
+        ``slide_trace_step_m``, ``known_var_m2``)."""
+        out = cls(float(p.get("slide_max_length_m", cls.max_length_m)),
+                  float(p.get("slide_min_length_m", cls.min_length_m)),
+                  float(p.get("slide_trace_step_m", cls.trace_step_m)),
+                  float(p.get("known_var_m2", cls.known_var_m2)))
+        if not 0 < out.min_length_m <= out.max_length_m:
+            raise ValueError(f"need 0 < slide_min_length_m ({out.min_length_m}) ≤ slide_max_length_m "
+                             f"({out.max_length_m})")
+        if not out.trace_step_m > 0:
+            raise ValueError(f"slide_trace_step_m = {out.trace_step_m}: must be > 0")
+        return out
+
+
+@dataclass
+class SlideChoice:
+    """The chosen slide (index −1 when no candidate is reachable) and every score.
+
+    ``scores`` (M, 2): the best G/T of each candidate in direction +t / −t
+    (−inf unreachable); ``direction_xyz``: the unit start tangent; ``path_xyz``
+    (K+1, 3): the traced path of the chosen length on the estimate.
+    """
+
+    index: int
+    direction_xyz: np.ndarray
+    length_m: float
+    score: float
+    gain_m3: float
+    time_s: float
+    scores: np.ndarray
+    path_xyz: np.ndarray
+
+
+def start_tangents(normal_xyz: np.ndarray) -> np.ndarray:
+    """(M, 3) unit tangents z × n (horizontal; 2D: the contour tangent, counter-clockwise)."""
+    n = np.asarray(normal_xyz, dtype=float)
+    t = np.column_stack([-n[:, 1], n[:, 0], np.zeros(len(n))])
+    nrm = np.linalg.norm(t, axis=1, keepdims=True)
+    return np.where(nrm > 1e-9, t / np.maximum(nrm, 1e-12), 0.0)
+
+
+class _Field:
+    """μ, ∇μ and σ² of the lattice, interpolated (points in the lattice's own dim)."""
+
+    def __init__(self, lattice: MapLattice) -> None:
+        axes = tuple(np.asarray(a, dtype=float) for a in lattice.axes)
+        grads = np.gradient(np.asarray(lattice.mean_m, dtype=float), *axes)
+        kw = dict(bounds_error=False, fill_value=np.nan)
+        self.mean = RegularGridInterpolator(axes, lattice.mean_m, **kw)
+        self.var = RegularGridInterpolator(axes, lattice.variance_m2, **kw)
+        self.grad = [RegularGridInterpolator(axes, g, **kw) for g in (grads if lattice.dim > 1 else [grads])]
+        self.dim = lattice.dim
+
+    def grad_at(self, x: np.ndarray) -> np.ndarray:
+        return np.column_stack([g(x) for g in self.grad])
+
+
+def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, step_m: float,
+          n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Trace paths along μ = 0 (module docstring) from (M, 3) starts along (M, 3) tangents.
+
+    Returns (points (M, K+1, 3), variance (M, K+1), valid (M, K+1) bool); a
+    path is valid up to its first invalid step. In 2D the z column is the
+    start's.
+    """
+    field = _Field(lattice)
+    d = field.dim
+    x = np.asarray(start_xyz, dtype=float)[:, :d].copy()
+    t = np.asarray(tangent_xyz, dtype=float)[:, :d].copy()
+    M = len(x)
+    pts = np.zeros((M, n_steps + 1, d))
+    ok = np.zeros((M, n_steps + 1), bool)
+    pts[:, 0] = x
+    ok[:, 0] = np.isfinite(x).all(axis=1) & (np.linalg.norm(t, axis=1) > 0.5)
+    alive = ok[:, 0].copy()
+    for k in range(1, n_steps + 1):
+        prev = x.copy()
+        x = x + step_m * t
+        for _ in range(2):
+            mu = field.mean(x)
+            g = field.grad_at(x)
+            g2 = np.sum(g * g, axis=1)
+            good = np.isfinite(mu) & np.isfinite(g2) & (g2 > 1e-8)
+            x = np.where(good[:, None], x - (np.where(good, mu, 0.0) / np.where(good, g2, 1.0))[:, None] * g, x)
+            alive &= good
+        mu = field.mean(x)
+        alive &= np.isfinite(mu) & (np.abs(np.nan_to_num(mu, nan=np.inf)) < 0.25 * step_m)
+        alive &= np.linalg.norm(x - prev, axis=1) < 2.0 * step_m
+        g = field.grad_at(x)
+        gn = np.linalg.norm(g, axis=1, keepdims=True)
+        nh = np.where(gn > 1e-9, g / np.maximum(gn, 1e-12), 0.0)
+        tt = t - np.sum(t * nh, axis=1, keepdims=True) * nh
+        tn = np.linalg.norm(tt, axis=1, keepdims=True)
+        alive &= tn[:, 0] > 1e-6
+        t = np.where(tn > 1e-6, tt / np.maximum(tn, 1e-12), t)
+        pts[:, k] = x
+        ok[:, k] = alive
+    var = field.var(pts.reshape(-1, d)).reshape(M, n_steps + 1)
+    if d == 2:
+        z = np.broadcast_to(np.asarray(start_xyz, dtype=float)[:, 2:3, None], (M, n_steps + 1, 1))
+        pts = np.concatenate([pts, z], axis=2)
+    return pts, np.nan_to_num(var, nan=0.0), ok
+
+
+def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.ndarray, reachable: np.ndarray,
+                 travel_m: np.ndarray, motion: MotionModel, approach_m: float, params: SlideParams) -> SlideChoice:
+    """The slide with the most uncertainty removed per second (module docstring).
+
+    ``travel_m`` (M,): LMDP path length from the tip to each candidate's
+    pre-touch point; ``approach_m``: the expected approach (and retract) length.
+    """
+    M = len(target_xyz)
+    h = float(params.trace_step_m)
+    K = max(1, int(np.ceil(params.max_length_m / h)))
+    k_min = max(1, int(np.ceil(params.min_length_m / h - 1e-9)))
+    t0 = start_tangents(normal_xyz)
+    ok_start = np.asarray(reachable, bool) & np.isfinite(np.asarray(travel_m, dtype=float))
+    idx = np.nonzero(ok_start)[0]
+    scores = np.full((M, 2), -np.inf)
+    empty = SlideChoice(-1, np.full(3, np.nan), float("nan"), -np.inf, 0.0, float("nan"), scores, np.zeros((0, 3)))
+    if len(idx) == 0:
+        return empty
+    starts = np.concatenate([target_xyz[idx], target_xyz[idx]])
+    tangents = np.concatenate([t0[idx], -t0[idx]])
+    pts, var, ok = trace(lattice, starts, tangents, h, K)
+    valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
+    w = np.where(valid, np.maximum(var - params.known_var_m2, 0.0), 0.0) * h
+    gain = np.cumsum(w, axis=1)  # (2m, K+1): G_k
+    s = np.arange(K + 1) * h
+    fixed = np.concatenate([motion.slide_time_s(travel_m[idx], approach_m, 0.0, approach_m)] * 2)
+    T = fixed[:, None] + s[None, :] / motion.slide_speed_mps
+    ratio = np.where(valid, gain / T, -np.inf)
+    ratio[:, :k_min] = -np.inf
+    best_k = np.argmax(ratio, axis=1)
+    best = ratio[np.arange(len(ratio)), best_k]
+    m = len(idx)
+    scores[idx, 0] = best[:m]
+    scores[idx, 1] = best[m:]
+    if not np.isfinite(best).any():
+        return empty
+    j = int(np.argmax(best))
+    k = int(best_k[j])
+    return SlideChoice(int(idx[j % m]), tangents[j].copy(), float(k * h), float(best[j]), float(gain[j, k]),
+                       float(T[j, k]), scores, pts[j, : k + 1].copy())
