@@ -25,6 +25,7 @@ from tactile_common.touch_geometry import MotionModel, TouchGeometry
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
 from .paths import path_length_m, shortcut
+from . import slides
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
 
@@ -59,6 +60,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "tip_speed_mps": (0.1, "free-space tip speed (motion model)", {"gt": 0.0}),
     "approach_speed_mps": (0.02, "approach/retract speed (motion model)", {"gt": 0.0}),
     "dwell_s": (0.5, "time at contact (motion model)", {"ge": 0.0}),
+    "touch": ("poke", "'poke' (approach, retract) or 'slide' (approach, then follow the surface: tactile_planner.slides)",
+              {"choices": ("poke", "slide")}),
+    "slide_speed_mps": (0.02, "slide: tip speed along the surface (motion model)", {"gt": 0.0}),
+    "slide_max_length_m": (0.3, "slide: longest planned slide", {"gt": 0.0}),
+    "slide_min_length_m": (0.02, "slide: shortest planned slide", {"gt": 0.0}),
+    "slide_trace_step_m": (0.003, "slide: step of the path traced along the estimated surface", {"gt": 0.0}),
     "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid", {"ge": 0.0}),
     "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update", {"gt": 0.0}),
     "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),
@@ -99,6 +106,8 @@ class PlanResult:
     n_excluded: int = 0
     n_nodes: int = 0
     backend_info: dict = field(default_factory=dict)
+    slide_direction_xyz: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))  # touch 'slide': unit start tangent
+    slide_length_m: float = float("nan")  # touch 'slide': planned length along the surface
 
     @property
     def ok(self) -> bool:
@@ -256,7 +265,7 @@ class TouchPlanner:
                               n_unreachable=int(m - excluded.sum()), **base)
         # the motion-model time (travel length) is needed by the time-based scores only
         needs_time = p["strategy"] in ("info_gain", "info_travel") or (
-            p["strategy"] == "proposed" and p["score_form"] == "ratio")
+            p["strategy"] == "proposed" and p["score_form"] == "ratio") or p["touch"] == "slide"
         sol = self.backend.solve(graph, start, term_node, term_len, reachable, want_travel_m=needs_time)
         reachable &= np.isfinite(sol.cost)
         if not reachable.any():
@@ -269,6 +278,12 @@ class TouchPlanner:
                                approach_m=2.0 * float(p["standoff_m"]))
         scores = score_candidates(p["strategy"], ctx, self.strategy_params, self.rng)
         idx = int(np.argmax(scores))
+        slide = None
+        if p["touch"] == "slide":  # the slide with the most variance removed per second (tactile_planner.slides)
+            slide = slides.choose_slide(lattice, target, normal, reachable, sol.travel_m, MotionModel.from_params(p),
+                                        float(p["standoff_m"]), slides.SlideParams.from_params(p))
+            if slide.index >= 0:
+                idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)
         pts = np.vstack([tip[None], graph.xyz[nodes], pretouch[idx][None]])
         if bool(p["smooth_path"]):
@@ -289,6 +304,8 @@ class TouchPlanner:
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
             path_xyz=pts, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
             n_unreachable=n_unreach, backend_info=info, **base,
+            **({} if slide is None or slide.index < 0 else
+               dict(slide_direction_xyz=slide.direction_xyz, slide_length_m=slide.length_m)),
         )
 
 
