@@ -27,7 +27,7 @@ def sample_polyline(pts, step=5e-4):
 
 
 @pytest.mark.parametrize("backend", ["lmdp", "dijkstra"])
-@pytest.mark.parametrize("strategy", ["proposed", "uncertainty", "random", "sequential", "info_gain"])
+@pytest.mark.parametrize("strategy", ["proposed", "uncertainty", "random", "sequential", "info_gain", "info_travel"])
 def test_paths_stay_out_of_the_margin_and_end_at_the_pretouch_point(backend, strategy):
     params = dict(load_params(str(CONFIG)), backend=backend, strategy=strategy)
     planner = TouchPlanner.from_params(params, seed=4)

@@ -96,3 +96,34 @@ def test_info_gain_matches_the_written_out_formula():
 def test_unknown_strategy_is_a_clear_error():
     with pytest.raises(ValueError, match="strategy must be one of"):
         score_candidates("nearest", context(), StrategyParams(), np.random.default_rng(0))
+
+
+def test_info_travel_is_wrong_surface_settled_per_metre_written_out():
+    from math import erfc, exp, sqrt
+
+    ctx = context(6)
+    ctx.travel_m = ctx.cost / 100.0
+    ctx.approach_m = 0.02
+    tau, ell = 0.002, 0.03
+    w = [erfc(tau / sqrt(v) / sqrt(2)) for v in ctx.variance_m2]  # 2Φ(−τ/σ)
+    want = np.full(len(w), -np.inf)
+    for c in range(len(w)):
+        if not ctx.reachable[c]:
+            continue
+        settled = sum(exp(-float(np.sum((ctx.xyz[m] - ctx.xyz[c]) ** 2)) / ell**2) * w[m] for m in range(len(w)))
+        want[c] = w[c] * settled / (ctx.travel_m[c] + ctx.approach_m)
+    got = score_candidates("info_travel", ctx, StrategyParams(known_tolerance_m=tau, info_gain_length_scale_m=ell),
+                           np.random.default_rng(0))
+    np.testing.assert_allclose(got[ctx.reachable], want[ctx.reachable], rtol=1e-10)
+    assert np.all(np.isneginf(got[~ctx.reachable]))
+
+
+def test_info_travel_prefers_far_unknown_surface_to_near_known_surface():
+    ctx = context(7)
+    ctx.travel_m = np.full(len(ctx.cost), 0.3)
+    ctx.variance_m2[:] = (0.0005) ** 2  # known within 0.5 mm everywhere ...
+    near = 10
+    ctx.travel_m[near] = 0.0  # ... and the finger is right next to candidate 10
+    far = 20
+    ctx.variance_m2[far] = (0.004) ** 2  # one place where the surface may be 4 mm off
+    assert pick("info_travel", ctx) == far

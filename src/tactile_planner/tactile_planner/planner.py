@@ -33,7 +33,7 @@ from .travel import TravelError, make_backend
 #: name -> (default, description): the node's ROS parameters, also the keys of ``from_params``.
 PARAMETERS: dict[str, tuple[Any, str]] = {
     "mode": ("2d", "'2d' (plane z = plane height, 8-connected) or '3d' (26-connected); must match the map", {"choices": ("2d", "3d")}),
-    "strategy": ("proposed", f"one of {STRATEGIES}", {"choices": STRATEGIES}),
+    "strategy": ("info_travel", f"one of {STRATEGIES}", {"choices": STRATEGIES}),
     "score_form": ("normalized", f"proposed strategy form: one of {SCORE_FORMS}", {"choices": SCORE_FORMS}),
     "alpha": (1.0, "uncertainty/travel trade-off of the proposed strategy (→∞: most uncertain, →0: nearest)", {"ge": 0.0}),
     "seed": (0, "seed of the planner's random generator (random strategy)", {"ge": 0}),
@@ -69,9 +69,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid", {"ge": 0.0}),
     "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update", {"gt": 0.0}),
     "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),
-    "known_var_m2": (0.0, "info_gain, info_travel: variance at or below which the surface counts as known "
-                          "(only the excess σ² − this is information)", {"ge": 0.0}),
-    "known_tolerance_m": (0.0, "info_travel: the surface counts as known where P(|f| > this) is small", {"ge": 0.0}),
+    "known_tolerance_m": (0.002, "info_travel: a touch is worth the chance that the surface there is more than "
+                                 "this far from the estimate, P(|f| > τ) = 2Φ(−τ/σ)", {"gt": 0.0}),
     "smooth_path": (True, "shortcut the lattice path (never entering the margin)"),
 }
 
@@ -133,7 +132,7 @@ class TouchPlanner:
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
-                  "info_gain_length_scale_m"):
+                  "info_gain_length_scale_m", "known_tolerance_m"):
             if not float(p[k]) > 0:
                 raise ValueError(f"{k} must be positive, got {p[k]}")
         if int(p["lattice_stride"]) < 1:
@@ -151,7 +150,6 @@ class TouchPlanner:
             sequential_step_rad=float(p["sequential_step_rad"]),
             info_gain_length_scale_m=float(p["info_gain_length_scale_m"]),
             info_gain_noise_var_m2=float(p["info_gain_noise_var_m2"]),
-            known_var_m2=float(p["known_var_m2"]),
             known_tolerance_m=float(p["known_tolerance_m"]),
         )
         self.last_graph: FreeSpaceGraph | None = None

@@ -24,7 +24,14 @@ the lowest index). Every strategy receives the planner's seeded
   correlation ρ(r) = exp(−r²/2ℓ²) (ℓ = ``info_gain_length_scale_m``); a contact
   at c with noise σ_n² reduces Σ_m σ_m² by σ_c²/(σ_c² + σ_n²)·Σ_m ρ²σ_m². Time
   = travel/tip speed + 2·standoff/approach speed + dwell.
-"""
+- ``info_travel`` (ours, the default): the wrong surface a touch settles per
+  metre of travel. w = P(|f| > τ) = 2Φ(−τ/σ) is the chance that the surface
+  at a candidate lies more than τ = ``known_tolerance_m`` from the estimate;
+  value(c) = w_c·Σ_m exp(−|m − c|²/ℓ²)·w_m; score = value / (travel_m +
+  2·standoff). w saturates where σ ≫ τ and vanishes where σ ≪ τ: the value
+  does not span the orders of magnitude of σ², and a touch where the shape is
+  known within τ is worth ≈ 0 however near the finger is.
+
 
 from __future__ import annotations
 
@@ -60,8 +67,7 @@ class StrategyParams:
     sequential_step_rad: float = 0.2
     info_gain_length_scale_m: float = 0.03
     info_gain_noise_var_m2: float = 1e-6
-    known_var_m2: float = 0.0
-    known_tolerance_m: float = 0.0
+    known_tolerance_m: float = 0.002
 
 
 def _norm(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -80,13 +86,23 @@ def wrong_probability(var_m2: np.ndarray, tolerance_m: float) -> np.ndarray:
     return 2.0 * ndtr(-tolerance_m / sd)
 
 
+def wrong_surface_corrected(xyz: np.ndarray, var_m2: np.ndarray, tolerance_m: float,
+                            length_scale_m: float) -> np.ndarray:
+    """Value of a touch at each candidate c: w_c·Σ_m ρ(|m − c|)²·w_m, w = P(|f| > τ)
+    (:func:`wrong_probability`), ρ² = exp(−r²/ℓ²): about how many candidates that may be
+    wrong by more than τ a contact at c settles. w saturates at 1 where σ ≫ τ and tends to
+    0 where σ ≪ τ, so a touch where the surface is already known within τ is worth ~0 however
+    near it is, and the value no longer spans the orders of magnitude of σ². O(M²)."""
+    w = wrong_probability(var_m2, tolerance_m)
+    return w * (np.exp(-_sqdist(xyz) / length_scale_m**2) @ w)
+
+
 def variance_reduction_m2(xyz: np.ndarray, var_m2: np.ndarray, length_scale_m: float,
                           noise_var_m2: float) -> np.ndarray:
     """Expected reduction of Σ_m σ_m² over the candidates by one contact at each candidate c:
     σ_c²/(σ_c² + σ_n²)·Σ_m ρ(|m − c|)²σ_m², ρ(r) = exp(−r²/2ℓ²) (the approximate covariance
     cov(m, c) ≈ ρσ_mσ_c). O(M²) memory and time."""
-    d2 = np.sum((xyz[:, None, :] - xyz[None, :, :]) ** 2, axis=2)
-    rho2 = np.exp(-d2 / length_scale_m**2)  # ρ² = exp(−r²/ℓ²)
+    rho2 = np.exp(-_sqdist(xyz) / length_scale_m**2)  # ρ² = exp(−r²/ℓ²)
     return var_m2 / (var_m2 + noise_var_m2) * (rho2 @ var_m2)
 
 
@@ -114,18 +130,14 @@ def score_candidates(name: str, ctx: SelectionContext, params: StrategyParams,
         tip = np.arctan2(ctx.tip_xyz[1] - c[1], ctx.tip_xyz[0] - c[0])
         ahead = np.mod(ang - tip - params.sequential_step_rad, 2 * np.pi)
         s = -ahead
-    elif name in ("info_gain", "info_travel"):
-        gain = variance_reduction_m2(ctx.xyz, np.maximum(var - params.known_var_m2, 0.0),
-                                     params.info_gain_length_scale_m, params.info_gain_noise_var_m2)
-        if name == "info_gain":
-            s = gain / np.maximum(ctx.time_s, 1e-9)
-        else:
-            if params.known_tolerance_m > 0:
-                w = wrong_probability(var, params.known_tolerance_m)
-                gain = w * (np.exp(-_sqdist(ctx.xyz) / params.info_gain_length_scale_m**2) @ w)
-            if ctx.travel_m is None:
-                raise ValueError("info_travel needs the travel length of every candidate (travel_m)")
-            s = gain / np.maximum(np.where(ok, ctx.travel_m, np.inf) + ctx.approach_m, 1e-9)
+    elif name == "info_gain":
+        gain = variance_reduction_m2(ctx.xyz, var, params.info_gain_length_scale_m, params.info_gain_noise_var_m2)
+        s = gain / np.maximum(ctx.time_s, 1e-9)
+    elif name == "info_travel":
+        if ctx.travel_m is None:
+            raise ValueError("info_travel needs the travel length of every candidate (travel_m)")
+        gain = wrong_surface_corrected(ctx.xyz, var, params.known_tolerance_m, params.info_gain_length_scale_m)
+        s = gain / np.maximum(np.where(ok, ctx.travel_m, np.inf) + ctx.approach_m, 1e-9)
     else:
         raise ValueError(f"strategy must be one of {STRATEGIES}, got '{name}'")
     return np.where(ok, s, -np.inf)
