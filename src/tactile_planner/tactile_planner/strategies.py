@@ -31,6 +31,7 @@ the lowest index). Every strategy receives the planner's seeded
   2·standoff). w saturates where σ ≫ τ and vanishes where σ ≪ τ: the value
   does not span the orders of magnitude of σ², and a touch where the shape is
   known within τ is worth ≈ 0 however near the finger is.
+"""
 
 
 from __future__ import annotations
