@@ -88,6 +88,8 @@ def test_progress_figure_without_estimator_or_truth(tmp_path):
 
 def test_3d_progress_figure(tmp_path):
     report, est, obj = _circle_run("3d", n=5)
+    c = np.array(report["touches"][1]["contact"])
+    report["touches"][1]["slide_contacts"] = [(c + [0.0, 0.0, -dz]).tolist() for dz in (0.01, 0.005)]
     out = tmp_path / "p3.png"
     drawn = plot_progress_3d(report, out, est, obj)
     assert _is_png(out)
@@ -173,6 +175,21 @@ def test_strategy_figures_and_gallery(tmp_path):
                                          group=lambda r: "one panel"), min_bytes=8_000)
     circle = make_object("circle", mode="2d").surface_samples(0.002)
     assert plots.plot_gallery([("a\nIoU 0.9", circle, circle)] * 3, tmp_path / "g.png").stat().st_size > 5000
+
+
+def test_slide_geometry_and_figure(tmp_path):
+    """A slide: the approach ends at its first contact, its trace ends at the recorded (last) contact."""
+    report, est, obj = _circle_run("2d", n=3)
+    t = report["touches"][1]
+    c = np.array(t["contact"])
+    ang = np.arctan2(c[1], c[0] - 0.5)
+    arc = [[0.5 + 0.04 * np.cos(a), 0.04 * np.sin(a), 0.06] for a in ang - np.array([0.6, 0.4, 0.2])]
+    t.update(slide_contacts=arc, touch="slide")
+    g = figure_data.touch_geometry(report)[1]
+    assert g.approach_end_xyz.tolist() == arc[0]
+    assert g.slide_line_xyz.tolist() == arc + [c.tolist()]
+    assert len(figure_data.touch_geometry(report)[0].slide_xyz) == 0, "a poke has no slide"
+    assert _is_png(tmp_path / "s.png") if plot_progress_2d(report, tmp_path / "s.png", est, obj) is not None else False
 
 
 def test_bad_input_is_named(tmp_path):

@@ -9,8 +9,8 @@
   the median and the 25th/75th percentiles at each grid point over the runs
   that have a value there (a curve without a recorded prior starts at its
   first touch).
-- Touch geometry: the followed path, the approach segment and the observed
-  point of each touch, in order (world frame, metres).
+- Touch geometry: the followed path, the approach segment, the observed
+  point and a slide's contacts of each touch, in order (world frame, metres).
 """
 
 from __future__ import annotations
@@ -104,6 +104,19 @@ class TouchGeometry:
     point_xyz: np.ndarray         # contact point, or the probe end (finger centre at max depth)
     normal_xyz: Optional[np.ndarray]
     contact: bool
+    slide_xyz: np.ndarray         # a slide's contacts in order, its first to its last = point (K, 3; empty: a poke)
+
+    @property
+    def approach_end_xyz(self) -> np.ndarray:
+        """Where the approach from the path's end met the object (a slide: its first contact)."""
+        return self.slide_xyz[0] if len(self.slide_xyz) else self.point_xyz
+
+    @property
+    def slide_line_xyz(self) -> np.ndarray:
+        """The slide's trace (its contacts, ending at the recorded contact); empty for a poke."""
+        if not len(self.slide_xyz):
+            return self.slide_xyz
+        return np.vstack([self.slide_xyz, self.point_xyz[None, :]])
 
 
 def touch_geometry(report: dict) -> list[TouchGeometry]:
@@ -113,12 +126,14 @@ def touch_geometry(report: dict) -> list[TouchGeometry]:
         contact = t.get("contact") is not None
         point = t["contact"] if contact else (t.get("probe_end") or t.get("target"))
         path = t.get("path")
+        slide = t.get("slide_contacts")
         out.append(TouchGeometry(
             index=int(t["index"]),
             path_xyz=np.asarray(path, dtype=float).reshape(-1, 3) if path else np.zeros((0, 3)),
             point_xyz=np.asarray(point, dtype=float),
             normal_xyz=np.asarray(t["normal"], dtype=float) if contact and t.get("normal") else None,
             contact=contact,
+            slide_xyz=np.asarray(slide, dtype=float).reshape(-1, 3) if slide else np.zeros((0, 3)),
         ))
     return out
 

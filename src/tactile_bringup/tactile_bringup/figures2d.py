@@ -103,7 +103,9 @@ def draw_plane(ax, report: dict, estimator=None, obj=None, estimate_xy=None, tru
     ax.set_aspect("equal")
     ax.set_xlabel("x (m, world)")
     ax.set_ylabel("y (m, world)")
-    ax.legend(handles=handles, loc="upper left", fontsize=7, framealpha=0.9, ncol=2)
+    # below the map: it never hides data
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), fontsize=8, ncol=4,
+              frameon=False)
 
 
 def _draw_touches(ax, report: dict, fig, handles: list) -> None:
@@ -118,8 +120,16 @@ def _draw_touches(ax, report: dict, fig, handles: list) -> None:
     for g, c in zip(geo, colour):
         if len(g.path_xyz):
             ax.plot(g.path_xyz[:, 0], g.path_xyz[:, 1], "-", color=c, lw=1.0, alpha=0.85, zorder=5)
-            end = g.path_xyz[-1]
-            ax.plot([end[0], g.point_xyz[0]], [end[1], g.point_xyz[1]], ":", color=c, lw=1.2, zorder=5)
+            end, hit = g.path_xyz[-1], g.approach_end_xyz
+            ax.plot([end[0], hit[0]], [end[1], hit[1]], ":", color=c, lw=1.2, zorder=5)
+    slides = [(g, c) for g, c in zip(geo, colour) if len(g.slide_xyz)]
+    for g, c in slides:  # from the first contact along the surface, each streamed contact a dot
+        S = g.slide_line_xyz
+        ax.plot(S[:, 0], S[:, 1], "-", color=c, lw=2.2, alpha=0.6, solid_capstyle="round", zorder=6)
+        ax.plot(g.slide_xyz[:, 0], g.slide_xyz[:, 1], ".", ms=2.5, color="k", zorder=6)
+    if slides:
+        handles.append(Line2D([], [], color="0.5", lw=2.2, alpha=0.6, marker=".", mfc="k", mec="k", ms=4,
+                              label="slide (• streamed contacts)"))
     if len(geo[0].path_xyz):
         s = geo[0].path_xyz[0]
         ax.plot(s[0], s[1], "*", ms=11, mfc="white", mec="k", zorder=8)

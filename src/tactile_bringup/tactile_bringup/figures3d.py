@@ -161,8 +161,12 @@ def _draw_touches(ax, geo) -> None:
         if len(g.path_xyz):
             segs += list(np.stack([g.path_xyz[:-1], g.path_xyz[1:]], axis=1))
             seg_c += [c] * (len(g.path_xyz) - 1)
-            segs.append(np.stack([g.path_xyz[-1], g.point_xyz]))
+            segs.append(np.stack([g.path_xyz[-1], g.approach_end_xyz]))
             seg_c.append(c)
+    slides = [(g, c) for g, c in zip(geo, colour) if len(g.slide_xyz)]
+    for g, c in slides:  # from the first contact along the surface, each streamed contact a dot
+        ax.plot(*g.slide_line_xyz.T, "-", color=c, lw=2.5, alpha=0.7, axlim_clip=True)
+        ax.scatter(*g.slide_xyz.T, s=3, c="k", depthshade=False, axlim_clip=True)
     if segs:
         ax.add_collection3d(Line3DCollection(segs, colors=seg_c, linewidths=0.7, alpha=0.6), autolim=False,
                             axlim_clip=True)
@@ -194,4 +198,7 @@ def _legend(geo, rings: bool) -> list:
         h += [Line2D([], [], color=cmap(0.0), lw=1, label=f"paths, touch 0 (red) → {len(geo) - 1} (yellow)"),
               Line2D([], [], marker="o", ls="", mfc=cmap(0.5), mec="k", label="contact (→ normal)"),
               Line2D([], [], marker="X", ls="", mfc=cmap(0.5), mec="k", label="free-space probe end")]
+        if any(len(g.slide_xyz) for g in geo):
+            h.append(Line2D([], [], color=cmap(0.5), lw=2.5, marker=".", mfc="k", mec="k", ms=4,
+                            label="slide (• streamed contacts)"))
     return h
