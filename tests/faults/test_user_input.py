@@ -156,6 +156,7 @@ def test_explore_offline_runs_from_venv_bin_without_tactile_env(tmp_path):
 @pytest.mark.parametrize("args, expected", [
     (["--touches", "-3"], "--touches -3: must be ≥ 1"),
     (["--alpha", "-1"], "--alpha -1.0: must be ≥ 0"),
+    (["--touch", "drag"], "--touch drag: unknown touch; must be one of 'poke', 'slide' (soc_planner.touch)"),
 ])
 def test_explore_offline_refuses_bad_values(tmp_path, args, expected):
     result = _run([BIN / "tactile-explore-offline", *args, "--report", tmp_path / "r.json"], env=_bare_env())

@@ -53,7 +53,7 @@ def add_experiment_args(parser: argparse.ArgumentParser, several: bool = False) 
                             help="proposed | uncertainty | random | sequential | info_gain | info_travel "
                                  "(default proposed)")
         parser.add_argument("--seed", type=integer, default=0, help="seed of every random choice, ≥ 0 (default 0)")
-    parser.add_argument("--touch", choices=("poke", "slide"), default=None,
+    parser.add_argument("--touch", default=None, metavar="poke|slide",
                         help="poke: approach and retract; slide: approach, then follow the surface "
                              "(soc_planner.touch; default poke)")
 

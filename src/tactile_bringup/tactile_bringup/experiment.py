@@ -80,7 +80,7 @@ class Experiment:
         from .param_checks import check_cli_values, check_experiment
 
         check_cli_values({"--alpha": self.alpha, "--touches": self.touches, "--strategy": self.strategy,
-                          "--seed": self.seed})
+                          "--seed": self.seed, "--touch": self.touch})
         self.params_files = default_params_files(self.mode) + [Path(p) for p in self.user_params_files]
         for path in self.params_files:
             if not Path(path).is_file():

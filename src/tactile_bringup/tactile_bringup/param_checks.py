@@ -52,6 +52,7 @@ CLI_OPTIONS = {
     "--touches": ("explorer", "touches"),
     "--alpha": ("soc_planner", "alpha"),
     "--strategy": ("soc_planner", "strategy"),
+    "--touch": ("soc_planner", "touch"),
     "--seed": ("soc_planner", "seed"),
     "--real-time-factor": ("sim_rig", "real_time_factor"),
     "--rate": ("player", "rate"),
