@@ -135,6 +135,10 @@ class ArmCommanderNode(Node):
             path_xyz = arm_msgs.path_xyz(decision.path)
             if not (np.all(np.isfinite(position)) and np.all(np.isfinite(path_xyz))):
                 raise ValueError("goal or path is not finite")
+            frames = {decision.goal.header.frame_id, decision.path.header.frame_id}
+            frames |= {ps.header.frame_id for ps in decision.path.poses if ps.header.frame_id}
+            if frames != {topics.WORLD_FRAME}:
+                raise ValueError(f"goal or path in frame(s) {sorted(frames)}, expected '{topics.WORLD_FRAME}'")
         except ValueError as exc:
             self.invalid_goals += 1
             self.get_logger().error(f"invalid goal {decision.stamp_ns}: {exc}")

@@ -19,6 +19,7 @@ as new as everything it holds); the prior map at start has stamp 0.
 
 from __future__ import annotations
 
+import numpy as np
 from builtin_interfaces.msg import Time
 from nav_msgs.msg import OccupancyGrid
 from rclpy.node import Node
@@ -35,6 +36,9 @@ from tactile_common.stamps import stamp_ns
 
 from .estimator import PARAMETERS, ShapeEstimator
 from .ros_convert import occupancy_grid, surface_marker
+
+#: Most points accepted in one contacts message (the contract is one point per touch).
+MAX_CLOUD_POINTS = 16
 
 
 class GpisEstimatorNode(Node):
@@ -80,6 +84,11 @@ class GpisEstimatorNode(Node):
             return [(False, f"bad cloud: {exc}")]
         if len(pts) == 0:
             return [(False, "empty cloud")]
+        if len(pts) > MAX_CLOUD_POINTS:  # each point is a GP update: a flood would stall the node for minutes
+            return [(False, f"{len(pts)} points in one message; at most {MAX_CLOUD_POINTS} (one per touch)")]
+        labels = np.asarray(pts["label"], dtype=float)
+        if not (np.isfinite(labels).all() and (labels == np.round(labels)).all()):
+            return [(False, f"labels must be integers (1 contact, 0 free space), got {labels[:5].tolist()}")]
         results = []
         for p, n, label in zip(xyz(pts), normals(pts), pts["label"]):
             key = (stamp_ns(msg.header.stamp), int(label), *map(float, p))

@@ -34,6 +34,7 @@ from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_ns, time_from_ns
 
+from .maps import MapError, parse_variance_map
 from .planner import NODE_PARAMETERS, PARAMETERS, PlanResult, TouchPlanner
 from .pose import approach_rotation, quaternion_xyzw
 
@@ -73,9 +74,13 @@ class SocPlannerNode(Node):
 
     # -- inputs -----------------------------------------------------------
     def on_map(self, msg: PointCloud2) -> None:
-        try:
-            self.map = from_pointcloud2(msg)
-        except PointCloudError as exc:
+        try:  # a bad map never replaces the last good one
+            if msg.header.frame_id != self.frame_id:
+                raise MapError(f"frame_id '{msg.header.frame_id}', expected '{self.frame_id}'")
+            arr = from_pointcloud2(msg)
+            parse_variance_map(arr)
+            self.map = arr
+        except (PointCloudError, MapError) as exc:
             self.invalid_inputs += 1
             self.get_logger().error(f"invalid variance map ignored ({self.invalid_inputs} so far): {exc}")
             return
@@ -85,9 +90,11 @@ class SocPlannerNode(Node):
     def on_tip(self, msg: PoseStamped) -> None:
         p = msg.pose.position
         tip = np.array([p.x, p.y, p.z])
-        if not np.isfinite(tip).all():
+        if not np.isfinite(tip).all() or msg.header.frame_id != self.frame_id:
             self.invalid_inputs += 1
-            self.get_logger().warn("non-finite fingertip pose ignored")
+            self.get_logger().warn(f"fingertip pose ignored: {np.round(tip, 4).tolist()} in frame "
+                                   f"'{msg.header.frame_id}' (expected finite, in '{self.frame_id}')",
+                                   throttle_duration_sec=5.0)
             return
         self.tip = tip
         self.try_plan()
