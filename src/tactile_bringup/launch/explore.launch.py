@@ -16,11 +16,12 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from tactile_planner.strategies import STRATEGY_NAMES
 
 ARGS = {
     "mode": ("2d", "2d or 3d"),
     "object": ("", "object name or file (sim); empty = the mode's default"),
-    "strategy": ("", "proposed | uncertainty | random | sequential | info_gain"),
+    "strategy": ("", " | ".join(STRATEGY_NAMES)),
     "alpha": ("", "trade-off of the proposed strategy"),
     "touches": ("", "touch budget"),
     "seed": ("0", "seed of every random choice"),

@@ -12,6 +12,8 @@ import math
 import sys
 from typing import Callable
 
+from tactile_planner.strategies import STRATEGY_NAMES
+
 
 class Parser(argparse.ArgumentParser):
     """argparse whose errors are one line (``prog: error: ... (see --help)``), status 2."""
@@ -50,8 +52,7 @@ def add_experiment_args(parser: argparse.ArgumentParser, several: bool = False) 
     if not several:
         parser.add_argument("--object", default=None, help="object name or file (.csv 2D polygon, .stl/.obj mesh)")
         parser.add_argument("--strategy", default=None,
-                            help="proposed | uncertainty | random | sequential | info_gain | info_travel "
-                                 "(default proposed)")
+                            help=" | ".join(STRATEGY_NAMES) + " (default: soc_planner.yaml's strategy)")
         parser.add_argument("--seed", type=integer, default=0, help="seed of every random choice, ≥ 0 (default 0)")
     parser.add_argument("--touch", default=None, metavar="poke|slide",
                         help="poke: approach and retract; slide: approach, then follow the surface "
