@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from tactile_bringup import figure_data, plots
-from tactile_bringup.figures2d import plot_progress_2d
+from tactile_bringup.figures2d import contour_length_m, plot_progress_2d
 from tactile_bringup.figures3d import plot_progress_3d, truth_rings
 from tactile_bringup.progress import _path_record
 from tactile_bringup.report import make_report
@@ -109,6 +109,12 @@ def test_truth_rings_lie_on_the_sphere():
         r = np.linalg.norm(p[:, :2] - centre[:2], axis=1)
         assert np.allclose(p[:, 2], p[0, 2])
         assert np.abs(r - expect).max() < 2e-3 * radius / 0.04 + 1e-4  # lattice 120 over the box
+
+
+def test_contour_length_is_the_circumference():
+    circle = make_object("circle", mode="2d")
+    lo, hi = circle.bounds
+    assert contour_length_m(circle) == pytest.approx(np.pi * (hi[0] - lo[0]), rel=1e-4)
 
 
 def test_crossing_and_step_sampling_by_hand():

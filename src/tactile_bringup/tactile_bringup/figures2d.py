@@ -33,6 +33,19 @@ SIGMA_CMAP = "Greys"  # grey field: the coloured layers on top stay readable
 ORDER_CMAP = "plasma"
 
 
+def contour_length_m(obj, spacing_m: float = 0.0005) -> float:
+    """Length of the true contour (marching squares of the SDF on a ``spacing_m`` grid over the
+    object's box): one lap of the finger at contact."""
+    from tactile_gpis.levelset import marching_squares
+
+    lo, hi = np.asarray(obj.bounds, dtype=float)[:, :2] + [[-0.005], [0.005]]
+    axes = [np.arange(lo[i], hi[i], spacing_m) for i in range(2)]
+    X, Y = np.meshgrid(*axes, indexing="ij")
+    ls = marching_squares(obj.sdf(np.column_stack([X.ravel(), Y.ravel()])).reshape(X.shape), axes)
+    seg = ls.vertices[ls.elements]
+    return float(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum())
+
+
 def view_box(report: dict, bounds_xy: np.ndarray, truth_xy: Optional[np.ndarray], margin_m: float = 0.015) -> np.ndarray:
     """(2, 2) [lo; hi] box around the truth and every touch, inside the workspace ``bounds_xy``."""
     pts = [np.asarray(truth_xy)[:, :2]] if truth_xy is not None and len(truth_xy) else []
@@ -49,8 +62,9 @@ def view_box(report: dict, bounds_xy: np.ndarray, truth_xy: Optional[np.ndarray]
 
 
 def draw_plane(ax, report: dict, estimator=None, obj=None, estimate_xy=None, truth_xy=None, fig=None,
-               grid_points: int = 300, cbar_ax=None) -> None:
-    """The left panel (see the module docstring); each layer is drawn when its data is given."""
+               grid_points: int = 300, cbar_ax=None) -> Optional[float]:
+    """The left panel (see the module docstring); each layer is drawn when its data is given.
+    Returns the true contour's length (m), None without the object."""
     bounds = np.asarray(estimator.bounds_m, dtype=float) if estimator is not None else None
     truth_pts = obj.surface_samples(0.001) if obj is not None else truth_xy
     if bounds is None:
@@ -76,11 +90,12 @@ def draw_plane(ax, report: dict, estimator=None, obj=None, estimate_xy=None, tru
     gy = np.linspace(box[0, 1], box[1, 1], grid_points)
     X, Y = np.meshgrid(gx, gy)
     G = np.column_stack([X.ravel(), Y.ravel()])
-    true_in = est_in = None
+    true_in = est_in = lap_m = None
     if obj is not None:
         d = obj.sdf(G).reshape(X.shape)
         true_in = d < 0
         ax.contour(X, Y, d, levels=[0.0], colors="k", linewidths=2.0, zorder=3)
+        lap_m = contour_length_m(obj)
     elif truth_xy is not None and len(truth_xy):
         ax.plot(truth_xy[:, 0], truth_xy[:, 1], ".", ms=1, color="k", zorder=3)
     handles.append(Line2D([], [], color="k", lw=2.0, label="true contour"))
@@ -106,6 +121,7 @@ def draw_plane(ax, report: dict, estimator=None, obj=None, estimate_xy=None, tru
     # below the map: it never hides data
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.11), fontsize=8, ncol=4,
               frameon=False)
+    return lap_m
 
 
 def _draw_touches(ax, report: dict, fig, handles: list) -> None:
@@ -175,11 +191,16 @@ def plot_progress_2d(report: dict, path, estimator=None, obj=None, estimate_xy=N
     fig = plt.figure(figsize=(15, 8))
     gs = fig.add_gridspec(2, 3, width_ratios=[1.45, 0.3, 1.0], hspace=0.3, wspace=0.05)
     ax_map = fig.add_subplot(gs[:, 0])
-    draw_plane(ax_map, report, estimator, obj, estimate_xy, truth_xy, fig)
+    lap_m = draw_plane(ax_map, report, estimator, obj, estimate_xy, truth_xy, fig)
     ax_map.set_title("posterior σ, estimate vs truth, touches in order", fontsize=10)
     crossings = {}
     for row, key in enumerate(("travel_m", "time_s")):
-        crossings[key] = draw_iou_panel(fig.add_subplot(gs[row, 2]), report, key)
+        ax = fig.add_subplot(gs[row, 2])
+        crossings[key] = draw_iou_panel(ax, report, key)
+        if key == "travel_m" and lap_m:  # travel in contour lengths (docs/architecture.md, Metrics)
+            top = ax.secondary_xaxis("top", functions=(lambda x: x / lap_m, lambda n: n * lap_m))
+            top.set_xlabel(f"laps of the true contour ({lap_m:.3f} m each)", fontsize=8)
+            top.tick_params(labelsize=7)
     fig.suptitle(title(report), fontsize=11)
     fig.savefig(path, dpi=dpi, bbox_inches="tight")
     plt.close(fig)
