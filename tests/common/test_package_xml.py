@@ -35,9 +35,10 @@ MODULE_TO_ROSDEP = {
     "matplotlib": "python3-matplotlib",
     "mpl_toolkits": "python3-matplotlib",
     "pinocchio": "pinocchio",
-    # No rosdep key in rosdistro for these two (PyPI wheels here); the names follow the conventions.
+    # No rosdep key in rosdistro for these (PyPI wheels here); the names follow the conventions.
     "example_robot_data": "example-robot-data",
     "mcap": "python3-mcap",
+    "contourpy": "python3-contourpy",  # not in rosdistro either; Debian/Ubuntu's package name
     **{p: p for p in PACKAGES},
 }
 
