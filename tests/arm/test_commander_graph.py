@@ -133,7 +133,7 @@ def test_a_contact_still_on_its_way_at_the_end_of_the_approach_is_not_taken_for_
     assert not done  # no free-space verdict yet
     late = np.zeros(1, dtype=fields.CONTACT_DTYPE)
     late["x"], late["y"], late["z"], late["label"] = pre[0], pre[1] + APPROACH_M, pre[2], fields.LABEL_CONTACT
-    late_ns = int((end_s - 0.05) * 1e9)
+    late_ns = stamps.ns_from_s(end_s - 0.05)
     contact_pub.publish(to_pointcloud2(late, topics.WORLD_FRAME, stamps.time_from_ns(late_ns)))
     g.wait_for(lambda: done, 30, "touch_done")
     v = done_values(done[0])
