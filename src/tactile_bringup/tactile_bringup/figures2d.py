@@ -46,7 +46,8 @@ def contour_length_m(obj, spacing_m: float = 0.0005) -> float:
     return float(np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1).sum())
 
 
-def view_box(report: dict, bounds_xy: np.ndarray, truth_xy: Optional[np.ndarray], margin_m: float = 0.015) -> np.ndarray:
+def view_box(report: dict, bounds_xy: np.ndarray, truth_xy: Optional[np.ndarray],
+             margin_m: float = 0.015) -> np.ndarray:
     """(2, 2) [lo; hi] box around the truth and every touch, inside the workspace ``bounds_xy``."""
     pts = [np.asarray(truth_xy)[:, :2]] if truth_xy is not None and len(truth_xy) else []
     for g in touch_geometry(report):

@@ -4,9 +4,10 @@ Top row, three viewpoints of the world frame (metres): the estimated surface
 (μ = 0, marching tetrahedra on the estimator's lattice) coloured by log10 σ
 of the posterior at each triangle, lightly shaded; the true surface as a
 ghost of horizontal contour rings (marching squares of the true SDF at
-evenly spaced heights; the top view shows the lowest ring, the footprint); each touch's followed path and approach coloured by
-its order, contacts with their normals, free-space probe ends. Bottom row:
-IoU against travel and against robot time.
+evenly spaced heights; the top view shows the lowest ring, the footprint);
+each touch's followed path and approach coloured by its order, a slide's
+trace, contacts with their normals, free-space probe ends. Bottom row: IoU
+against travel and against robot time.
 
 matplotlib's mplot3d (Agg, off-screen) draws it; it sorts polygons within
 one collection only, so the layers are drawn in a fixed order (surface, rings,
