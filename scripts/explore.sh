@@ -175,7 +175,8 @@ fi
 start tactile_sensor
 start gpis_estimator
 start soc_planner
-start viz  # viewer markers and the robot description (docs/recording.md)
+# viz: viewer markers and the robot description (docs/recording.md)
+start viz
 if [ "$rig" = hardware ] && [ "$yes" != 1 ]; then
   read -r -p "The arm will move to the start pose and touch the object. Continue? [y/N] " answer < /dev/tty
   case "$answer" in y|Y|yes) ;; *) echo "explore.sh: aborted before any motion" >&2; stop_all; exit 1 ;; esac

@@ -62,7 +62,7 @@ def _nodes(context):
                     {"params_files": files, "out_dir": str(out), "mode": a["mode"], "evaluate": sim})
     nodes += [node("tactile_sensor", "tactile_driver", {"port": port}),
               node("gpis_estimator", "tactile_gpis"), node("soc_planner", "tactile_planner"),
-              node("arm_commander", "tactile_driver"), explorer,
+              node("arm_commander", "tactile_driver"), node("viz", "tactile_bringup"), explorer,
               RegisterEventHandler(OnProcessExit(target_action=explorer,
                                                  on_exit=[EmitEvent(event=Shutdown(reason="exploration done"))]))]
     return nodes
