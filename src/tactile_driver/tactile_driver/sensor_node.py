@@ -94,10 +94,12 @@ class TactileSensorNode(Node):
     def _on_pose(self, msg: PoseStamped) -> None:
         t = stamp_s(msg.header.stamp)
         pp, q = msg.pose.position, msg.pose.orientation
-        completed = self.driver.add_pose(t, [pp.x, pp.y, pp.z], xyzw(q))
+        wrong_frame = msg.header.frame_id != self.world_frame  # used as world, it would misplace the contacts
+        completed = None if wrong_frame else self.driver.add_pose(t, [pp.x, pp.y, pp.z], xyzw(q))
         if completed is None:
             self._invalid_poses += 1
-            self.get_logger().warn("ignored a fingertip pose (out of order or not finite)", throttle_duration_sec=5.0)
+            self.get_logger().warn(f"ignored a fingertip pose (out of order, not finite or frame "
+                                   f"'{msg.header.frame_id}' not '{self.world_frame}')", throttle_duration_sec=5.0)
             return
         for c in completed:
             self._publish_contact(c)

@@ -1,0 +1,138 @@
+"""Sensor faults, one per test: the simulated device (sim_sensor_device, fault_* parameters) + tactile_sensor.
+
+Each fault must be counted on /diagnostics (and raise its level), give no
+false contact while the fingertip rests 4 mm off the object, and leave the
+driver sensing: an approach afterwards gives one contact on the true surface
+(the built-in 2D 'circle', radius 4 cm at (0.50, 0.00); computed here). The
+last test feeds the driver invalid fingertip poses (its message input).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import PointCloud2
+
+from tactile_common import fields, qos, topics
+from tactile_common.pointcloud import from_pointcloud2
+from tactile_common.stamps import time_from_s
+
+from fault_helpers import diag_values, pose_msg
+
+pytestmark = pytest.mark.graph
+
+CENTRE, RADIUS_M, TIP_RADIUS_M, Z_M = np.array([0.50, 0.0]), 0.04, 0.010, 0.06
+SPEED_MPS = 0.02
+DIRECTION = np.array([math.cos(2.5), math.sin(2.5)])  # the approach touches the circle's lower right
+
+
+class PoseScript:
+    """Fingertip poses at 100 Hz: parked 4 mm off the circle, then a straight approach; extra (bad) poses on demand."""
+
+    def __init__(self, graph):
+        self.graph = graph
+        self.start = np.r_[CENTRE - DIRECTION * (RADIUS_M + TIP_RADIUS_M + 0.004), Z_M]
+        self.dir = np.r_[DIRECTION, 0.0]
+        self.t_go = None
+        self.extra: list = []  # functions now_s -> PoseStamped, each published once
+        self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
+        graph.node.create_timer(0.01, self.publish)
+
+    def wait_for_subscribers(self, contacts):
+        self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2 and contacts.publishers, 20,
+                            "pose subscribers and the contact writer")
+
+    def go(self):
+        self.t_go = self.graph.node.get_clock().now().nanoseconds * 1e-9
+
+    def publish(self):
+        now = self.graph.node.get_clock().now()
+        t = now.nanoseconds * 1e-9
+        travel = 0.0 if self.t_go is None else min(SPEED_MPS * (t - self.t_go), 0.03)
+        self.pub.publish(pose_msg(self.start + travel * self.dir, topics.WORLD_FRAME, now.to_msg()))
+        if self.extra:
+            self.pub.publish(self.extra.pop(0)(t))
+
+
+def _start(graph, link, *faults):
+    graph.start("device", ["sim_sensor_device", "--ros-args", "-p", f"link_path:={link}", "-p", "object:=circle",
+                           "-p", "mode:=2d", "-p", "seed:=3", *faults])
+    graph.start("driver", ["tactile_sensor", "--ros-args", "-p", f"port:={link}", "-p", "layout_file:=taxels_ring.yaml",
+                           "-p", "reconnect_min_s:=0.05", "-p", "diagnostics_period_s:=0.25"])
+
+
+def _check_contact(msg):
+    pts = from_pointcloud2(msg)
+    assert len(pts) == 1 and pts["label"][0] == fields.LABEL_CONTACT and msg.header.frame_id == topics.WORLD_FRAME
+    p, n = fields.xyz(pts)[0], fields.normals(pts)[0]
+    radial = (p[:2] - CENTRE) / np.linalg.norm(p[:2] - CENTRE)
+    assert abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) < 0.002, f"contact {p} is off the circle"
+    assert abs(p[2] - Z_M) < 0.002
+    assert math.degrees(math.acos(np.clip(n[:2] @ radial, -1, 1))) < 10.0, f"normal {n} vs radial {radial}"
+    assert radial @ DIRECTION < -0.9, "the touched side faces the approach"
+
+
+FAULTS = {  # name: (device parameters, the diagnostics that must count it)
+    "garbage_bytes": (["fault.garbage_prob:=0.05"], ("resyncs", "garbage_bytes")),
+    "crc_errors": (["fault.crc_error_prob:=0.05"], ("crc_errors",)),
+    "dropped_frames": (["fault.drop_prob:=0.05"], ("gaps", "lost_frames")),
+    "stuck_taxel": (["fault.stuck_taxel:=5", "fault.stuck_value:=30000", "fault.stuck_after_s:=1.0"],
+                    ("stuck_taxels",)),
+    "disconnect": (["fault.disconnect_at_s:=2.0", "fault.disconnect_for_s:=0.5"], ("disconnects", "reconnects")),
+}
+
+
+@pytest.mark.parametrize("fault", list(FAULTS))
+def test_sensor_fault_is_reported_gives_no_false_contact_and_the_driver_still_senses(ros_graph, tmp_path, fault):
+    g = ros_graph
+    params, counters = FAULTS[fault]
+    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.OBSERVATIONS)
+    script = PoseScript(g)
+    _start(g, tmp_path / "sensor", *[a for kv in params for a in ("-p", kv)])
+
+    def counted():
+        for m in diags:
+            v = diag_values(m)
+            if all(int(v[c]) > 0 for c in counters) and v["connected"] == "true" and v["calibrated"] == "true":
+                return v
+        return None
+
+    v = g.wait_for(counted, 30, f"/diagnostics counting {counters}")
+    assert not contacts, "a fault must never produce a contact"
+    levels = [m.status[0].level for m in diags]
+    assert DiagnosticStatus.WARN in levels or DiagnosticStatus.ERROR in levels, "the fault raises the level"
+    if fault == "disconnect":
+        assert any(diag_values(m)["connected"] == "false" for m in diags) or int(v["reconnects"]) >= 1
+    script.wait_for_subscribers(contacts)
+    script.go()
+    g.wait_for(lambda: contacts, 15, "a contact after the fault")
+    _check_contact(contacts[0])
+    assert g.procs["driver"].alive() and g.procs["device"].alive()
+
+
+def test_invalid_fingertip_poses_are_counted_and_contacts_still_use_the_valid_ones(ros_graph, tmp_path):
+    g = ros_graph
+    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.OBSERVATIONS)
+    script = PoseScript(g)
+    _start(g, tmp_path / "sensor")
+    g.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 30, "calibration")
+    script.wait_for_subscribers(contacts)
+    far = [0.30, 0.20, 0.06]  # a plausible position: used as world, it would move the contact there
+    script.extra = [
+        lambda t: pose_msg([np.nan, 0.0, Z_M], topics.WORLD_FRAME, time_from_s(t)),
+        lambda t: pose_msg(far, topics.WORLD_FRAME, time_from_s(t), q_xyzw=(0.0, 0.0, 0.0, 0.0)),
+        lambda t: pose_msg(far, topics.WORLD_FRAME, time_from_s(t - 1.0)),  # older than the newest
+        lambda t: pose_msg(far, "base_link", time_from_s(t + 0.001)),  # another frame
+    ]
+    n_bad = len(script.extra)
+    g.wait_for(lambda: not script.extra and diags and int(diag_values(diags[-1])["invalid_poses"]) >= n_bad, 10,
+               "the invalid poses counted")
+    assert int(diag_values(diags[-1])["invalid_poses"]) == n_bad
+    assert not contacts
+    script.go()
+    g.wait_for(lambda: contacts, 15, "a contact")
+    _check_contact(contacts[0])
