@@ -80,7 +80,7 @@ def _shade(rgba: np.ndarray, tri: np.ndarray) -> np.ndarray:
 def plot_progress_3d(report: dict, path, estimator=None, obj=None, estimate_xyz=None, truth_xyz=None,
                      dpi: int = 100) -> dict:
     """Write the 3D progress figure to ``path`` (PNG); the IoU crossings drawn, per x key."""
-    fig = plt.figure(figsize=(18, 11.5))
+    fig = plt.figure(figsize=(18, 9.8))
     gs = fig.add_gridspec(2, 4, height_ratios=[1.5, 0.8], width_ratios=[1, 1, 1, 0.04], hspace=0.12,
                           wspace=0.08)
     tri, log_sd = estimate_mesh(estimator) if estimator is not None else (np.zeros((0, 3, 3)), np.zeros(0))
