@@ -137,8 +137,9 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
     pub_map = node.create_publisher(PointCloud2, topics.VARIANCE_MAP, qos.MAP)
     pub_tip = node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
     pub_req = node.create_publisher(DiagnosticStatus, "/planner/request", qos.EVENTS)
+    pub_done = node.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
     g.wait_for(lambda: pub_map.get_subscription_count() and pub_tip.get_subscription_count()
-               and pub_req.get_subscription_count() and goals.publishers and paths.publishers and status.publishers,
+               and pub_req.get_subscription_count() and pub_done.get_subscription_count() and goals.publishers and paths.publishers and status.publishers,
                30, "planner subscriptions and writers")
 
     def send_map(msg):  # latched depth 1: each map delivered before the next replaces it
@@ -147,6 +148,10 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
 
     good = sphere_map(64, 2, seed=3)
     send_map(to_pointcloud2(good, "world", Time(sec=1)))
+    # the planner has taken the good map: it answers a request on it
+    pub_req.publish(request_msg(PlanRequest(request_id=19, min_map_stamp_ns=10**9, start_xyz_m=(0.40, -0.10, 0.06))))
+    g.wait_for(lambda: any(answer_from_msg(s).request_id == 19 and s.message == "ok" for s in status), 20,
+               "the answer to request 19")
     n_bad = 0
     no_mean = good[[n for n in good.dtype.names if n != "mean"]]
     nan_map = good.copy()
@@ -160,6 +165,9 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
         msg.header.stamp = Time(sec=i)
         send_map(msg)
         n_bad += 1
+        # the reader keeps one map (depth 1): let the planner take this one before the next replaces it
+        g.wait_for(lambda: f"invalid variance map ignored ({n_bad} so far)" in g.procs["planner"].log(), 10,
+                   f"bad map {n_bad} taken")
     # bad tips: not finite, wrong frame (a plausible position in another frame must not be used as world)
     for tip in (pose_msg([np.nan, 0.0, 0.06]), pose_msg([0.60, 0.10, 0.06], frame_id="base_link")):
         pub_tip.publish(tip)
@@ -171,12 +179,17 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
         pub_req.publish(DiagnosticStatus(name="request", values=[KeyValue(key=k, value=v)
                                                                  for k, v in values.items()]))
         n_bad += 1
+    # bad touch reports: an unknown outcome, a goal stamp that is not a number
+    for outcome, stamp in (("exploded", "1"), ("unreachable", "one")):
+        pub_done.publish(DiagnosticStatus(name="touch", message=outcome,
+                                          values=[KeyValue(key="goal_stamp_ns", value=stamp)]))
+        n_bad += 1
+    assert pub_done.wait_for_all_acked(Duration(seconds=20)) and pub_req.wait_for_all_acked(Duration(seconds=20))
     # a valid request from a given start: planned on the last good map (map 1), not on a bad one
     pub_req.publish(request_msg(PlanRequest(request_id=20, min_map_stamp_ns=0, start_xyz_m=(0.40, -0.10, 0.06))))
     g.wait_for(lambda: any(answer_from_msg(s).request_id == 20 for s in status), 20, "the answer to request 20")
     answer = [s for s in status if answer_from_msg(s).request_id == 20][0]
     assert answer.message == "ok", _status_values(answer)
-    assert int(_status_values(answer)["invalid_inputs"]) == n_bad, (_status_values(answer), n_bad)
     g_xy = np.array([goals[-1].pose.position.x, goals[-1].pose.position.y])
     assert np.linalg.norm(g_xy - CENTRE) == pytest.approx(RADIUS + 0.02, abs=1e-6)  # on the good map's circle
     # a request without a start plans from the measured tip: the bad tips were not taken
@@ -190,6 +203,9 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
         return any(answer_from_msg(s).request_id == 21 for s in status)
 
     g.wait_for(tip_again, 20, "the answer to request 21")
+    # every bad input counted (read from a later answer: inputs on other topics may be taken after request 20)
+    answer = [s for s in status if answer_from_msg(s).request_id == 21][0]
+    assert int(_status_values(answer)["invalid_inputs"]) == n_bad, (_status_values(answer), n_bad)
     path = [p for p in paths if p.header.stamp.nanosec == 21][0]
     start = path.poses[0].pose.position
     np.testing.assert_allclose([start.x, start.y, start.z], [0.40, -0.10, 0.06], atol=1e-9)
