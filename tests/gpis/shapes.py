@@ -46,3 +46,29 @@ def fibonacci_sphere(n: int) -> np.ndarray:
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:
     return float((a & b).sum() / max((a | b).sum(), 1))
+
+
+def lobed_radius(u: np.ndarray, r0: float = 0.05, amp: float = 0.3, lobes: int = 3) -> np.ndarray:
+    """Non-convex 3D body, radius along unit directions u (N, 3): r0 (1 + amp cos(lobes theta) sin^2 phi)."""
+    th = np.arctan2(u[:, 1], u[:, 0])
+    return r0 * (1 + amp * np.cos(lobes * th) * (1 - np.clip(u[:, 2], -1, 1) ** 2))
+
+
+def lobed_sdf(p: np.ndarray) -> np.ndarray:
+    """|p - c| - r(direction): < 0 inside the lobed body (not a true distance)."""
+    v = p - CENTRE_3D
+    r = np.linalg.norm(v, axis=1)
+    return r - lobed_radius(v / np.maximum(r, 1e-12)[:, None])
+
+
+def lobed_surface(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """About n points (N, 3) on the lobed body above z = 3 mm, jittered Fibonacci directions
+    (seeded), with unit outward normals by central differences of lobed_sdf."""
+    rng = np.random.default_rng(seed)
+    d = fibonacci_sphere(n) + rng.normal(scale=0.02, size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    p = CENTRE_3D + lobed_radius(d)[:, None] * d
+    p = p[p[:, 2] > 0.003]
+    e = 1e-6
+    g = np.stack([(lobed_sdf(p + e * np.eye(3)[i]) - lobed_sdf(p - e * np.eye(3)[i])) / (2 * e) for i in range(3)], 1)
+    return p, g / np.linalg.norm(g, axis=1, keepdims=True)

@@ -67,8 +67,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
                "local.auto_min_contacts observations, then local)", {"choices": METHODS}),
     "local.auto_min_contacts": (300, "'auto': observations from which the local path takes over", {"ge": 1}),
-    "local.leaf_capacity": (24, "local: observations in an octree cell before it splits", {"ge": 1}),
-    "local.context_m": (0.015, "local: an expert sees the data this far beyond its octree cell (m)", {"gt": 0.0}),
+    "local.leaf_capacity": (32, "local: observations in an octree cell before it splits", {"ge": 1}),
+    "local.context_m": (0.012, "local: an expert sees the data at least this far beyond its octree cell (m)",
+                        {"gt": 0.0}),
+    "local.context_cells": (0.5, "local: ... and at least this many of its cell sizes (sparse data: big cells)",
+                            {"ge": 0.0}),
     "local.blend": (0.25, "local: half-width of the experts' blending ramp, a fraction of min(cell size, "
                     "local.context_m)", {"gt": 0.0, "lt": 1.0}),
     "local.anchor_spacing_m": (0.015, "local: an observation this far from every anchor becomes one (m)",
@@ -147,6 +150,7 @@ class ShapeEstimator:
         self.auto_min_contacts = int(p["local.auto_min_contacts"])
         self._local_args = dict(
             leaf_capacity=int(p["local.leaf_capacity"]), context_m=float(p["local.context_m"]),
+            context_cells=float(p["local.context_cells"]),
             blend=float(p["local.blend"]), anchor_spacing_m=float(p["local.anchor_spacing_m"]),
             max_anchors=int(p["local.max_anchors"]), band_m=float(p["local.band_m"]),
             coarse_stride=int(p["local.coarse_stride"]))

@@ -40,7 +40,7 @@ from typing import Optional
 import numpy as np
 import scipy.sparse as sp
 
-from .expert import ExpertGP, lower_solve
+from .expert import ExpertGP
 from .gp import GPIS, VALUE, FactorError, MeanFn, cross_cov, gradient_rows, zero_mean
 from .kernels import Kernel
 
@@ -82,8 +82,9 @@ class _Leaf:
         self.lo, self.hi, self.depth = lo, hi, depth
         size = hi - lo
         self.dlo, self.dhi = lo - context_m, hi + context_m  # data box
+        self.context_m = context_m
         self.centre, self.half = 0.5 * (lo + hi), 0.5 * size
-        self.ramp = np.full(dim, blend * min(float(size.min()), context_m))
+        self.ramp = np.full(dim, blend * min(float(size.min()), context_m))  # < the context
         self.blo, self.bhi = lo - self.ramp, hi + self.ramp  # weight support
         self.own: list[int] = []  # observations inside the cell
         self.rows = np.zeros(0, dtype=np.int64)  # global row ids inside the data box, in factor order
@@ -117,7 +118,9 @@ class LocalGPIS:
         bounds_m: (2, dim) box holding every observation (the tree's root cell).
         lattice_axes: per axis the lattice node coordinates (the map).
         leaf_capacity: observations in a leaf before it splits.
-        context_m: data box margin (m): an expert sees the data this far beyond its cell.
+        context_m, context_cells: data box margin: an expert sees the data up to
+            max(context_m, context_cells * its smallest cell size) beyond its cell (cells
+            shrink where data are dense, and so does the context needed; measured).
         blend: weight ramp half-width, as a fraction of min(cell size, context_m) (< 1).
         min_leaf_m: leaves never split below this size.
         anchor_spacing_m, max_anchors, anchor_batch, anchor_delay: the anchor subset.
@@ -126,8 +129,8 @@ class LocalGPIS:
     """
 
     def __init__(self, kernel: Kernel, dim: int, mean_fn: Optional[MeanFn], jitter: float,
-                 bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 24,
-                 context_m: float = 0.015, blend: float = 0.25, min_leaf_m: float = 0.004,
+                 bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 32,
+                 context_m: float = 0.012, context_cells: float = 0.5, blend: float = 0.25, min_leaf_m: float = 0.004,
                  anchor_spacing_m: float = 0.015, max_anchors: int = 256, anchor_batch: float = 0.25,
                  anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3) -> None:
         if not 0 < blend < 1:
@@ -142,6 +145,9 @@ class LocalGPIS:
         self.axes = [np.asarray(a, float) for a in lattice_axes]
         self.shape = tuple(len(a) for a in self.axes)
         self.leaf_capacity, self.context_m, self.blend = int(leaf_capacity), float(context_m), float(blend)
+        if not context_cells >= 0:
+            raise ValueError(f"local context_cells {context_cells} must be >= 0")
+        self.context_cells = float(context_cells)
         self.min_leaf_m = float(min_leaf_m)
         self.anchor_spacing_m, self.max_anchors = float(anchor_spacing_m), int(max_anchors)
         self.anchor_batch, self.anchor_delay = float(anchor_batch), int(anchor_delay)
@@ -184,7 +190,8 @@ class LocalGPIS:
         self._add_band_nodes(np.flatnonzero(np.abs(self._mu_a_lat) < self.band_m))
 
     def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int) -> _Leaf:
-        return _Leaf(lo, hi, depth, self.kernel, self.dim, self.context_m, self.blend, self.jitter)
+        c = max(self.context_m, self.context_cells * float((hi - lo).min()))
+        return _Leaf(lo, hi, depth, self.kernel, self.dim, c, self.blend, self.jitter)
 
     @property
     def n(self) -> int:
@@ -470,15 +477,26 @@ class LocalGPIS:
     def predict(self, Xq: np.ndarray, return_var: bool = True, return_grad: bool = False):
         """Blended posterior mean (and variance, and mean gradient) at (N, d) points.
 
-        Experts covering a query point are activated (built) if they were not yet."""
+        Experts covering a query point are activated (built) if they were not yet. The
+        anchor variance (the cap of the blended one) is interpolated from the coarse lattice
+        inside the lattice box (exact outside it).
+        """
         Xq = np.atleast_2d(np.asarray(Xq, float))
         N, d = Xq.shape
-        if self.anchor.n:
-            mean_a, var_a = self.anchor.predict(Xq) if return_var else (self.anchor.predict(Xq, False), None)
-            grad_a = self.anchor.predict_gradient(Xq) if return_grad else None
-        else:
-            mean_a, var_a = self.mean_fn(Xq)[0], np.full(N, self.kernel.k0)
-            grad_a = self.mean_fn(Xq)[1] if return_grad else None
+        mean_a = self._mu_a(Xq, np.full(N, VALUE))
+        grad_a = None
+        if return_grad:
+            Xg, tg = gradient_rows(Xq)
+            grad_a = self._mu_a(Xg, tg).reshape(N, d)
+        var_a = None
+        if return_var:
+            lo, hi = np.array([a[0] for a in self.axes]), np.array([a[-1] for a in self.axes])
+            inbox = np.all((Xq >= lo) & (Xq <= hi), axis=1)
+            var_a = np.empty(N)
+            if inbox.any():
+                var_a[inbox] = _interpolation_matrix(self._coarse_axes, Xq[inbox]) @ self.anchor.eval_variance()
+            if (~inbox).any():
+                var_a[~inbox] = self.anchor.predict(Xq[~inbox])[1] if self.anchor.n else self.kernel.k0
         num, wsum, vnum = np.zeros(N), np.zeros(N), np.zeros(N)
         gnum, gw = np.zeros((N, d)), np.zeros((N, d))
         for j in self._leaves_overlapping(Xq.min(0), Xq.max(0), "b"):
@@ -491,14 +509,18 @@ class LocalGPIS:
             P = Xq[sel]
             w, dw = lf.weight(P, grad=True)
             if lf.gp.n:
-                K = cross_cov(self.kernel, lf.gp.X, lf.gp.t, P, np.full(len(P), VALUE))
+                nq = len(P)
+                if return_grad:  # value and gradient rows in one cross-covariance
+                    Xg, tg = gradient_rows(P)
+                    KK = cross_cov(self.kernel, lf.gp.X, lf.gp.t, np.vstack([P, Xg]), np.r_[np.full(nq, VALUE), tg])
+                    K = KK[:, :nq]
+                    dr = (KK[:, nq:].T @ lf.gp.alpha).reshape(nq, d)
+                else:
+                    K = cross_cov(self.kernel, lf.gp.X, lf.gp.t, P, np.full(nq, VALUE))
                 r = K.T @ lf.gp.alpha
                 if return_var:
-                    V = lower_solve(lf.gp.L, K)
+                    V = lf.gp.solve(K)
                     v = self.kernel.k0 - np.einsum("ij,ij->j", V, V)
-                if return_grad:
-                    Xg, tg = gradient_rows(P)
-                    dr = (cross_cov(self.kernel, lf.gp.X, lf.gp.t, Xg, tg).T @ lf.gp.alpha).reshape(len(P), d)
             else:
                 r, v, dr = np.zeros(len(P)), np.full(len(P), self.kernel.k0), np.zeros((len(P), d))
             num[sel] += w * r

@@ -1,6 +1,6 @@
 """Planner benchmark: one decision in 2D (128²) and 3D (48³ shell), LMDP vs per-candidate solves vs Dijkstra.
 
-    python -m tactile_planner.bench [--json FILE] [--repeat N]
+    python -m tactile_planner.bench [--json FILE] [--repeat N] [--decision-ns N ...]
 
 A decision = parse the map + free-space graph + travel costs to every
 candidate + strategy + path (``TouchPlanner.plan``), median of ``--repeat``
@@ -10,18 +10,36 @@ candidates as the estimator publishes by default. "Per-candidate" solves the sam
 "per-candidate (shared factor)" reuses one factorisation (2D) — the most
 favourable per-candidate baseline. All figures come from one run, so their
 ratios are meaningful even on a loaded machine.
+
+The whole decision at scale (records with ``"kind": "decision"``, ``--decision-ns``,
+default 200, 1000, 2000 contacts with normals on a 5 cm circle / sphere, seeded): the
+GPIS estimator (default YAML, ``method`` exact and/or local, ``--decision-methods``) holds
+n contacts; then, ``--decision-reps`` times, one more contact is added (update_ms), the
+map is built (map_ms, ``ShapeEstimator.map_array``) and the planner decides on it
+(plan_ms, default planner parameters, tip outside the object); decision_ms = their sum,
+medians. The exact path is run only up to ``--decision-exact-max-n`` contacts (its
+lattice state is O(n M): 3D with normals at n = 200 already holds 0.7 GB), by default in
+2D only (``--decision-exact-dims``). Each case
+runs in its own process; peak_rss_mb is that process's peak resident memory.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
-import time
+import os
 
-import numpy as np
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before numpy: small solves lose to BLAS threads on a loaded machine
 
-from .planner import TouchPlanner
-from .synthetic import sphere_map
+import argparse  # noqa: E402
+import json  # noqa: E402
+import multiprocessing as mp  # noqa: E402
+import resource  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from .planner import TouchPlanner  # noqa: E402
+from .synthetic import sphere_map  # noqa: E402
 
 CASES = (
     dict(dim=2, n=128, params={"mode": "2d"}, tip=(0.38, -0.12, 0.06)),
@@ -114,14 +132,86 @@ def run(repeat: int = 5, n_candidates: int = 200) -> list[dict]:
     return records
 
 
+DECISION_GOALS_MS = {(3, 1000): 50.0, (2, 2000): 15.0}  # issue 14: update + map + plan
+
+
+def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
+    """Median update / map / plan times of the estimator + planner at n contacts (own process)."""
+    from tactile_gpis.bench import contacts_on_sphere
+    from tactile_gpis.estimator import ShapeEstimator
+
+    est = ShapeEstimator.from_params({"mode": f"{dim}d", "method": method, "duplicate_distance_m": 0.0})
+    planner = TouchPlanner.from_params({"mode": f"{dim}d"}, seed=seed)
+    pts, nrm = contacts_on_sphere(np.random.default_rng(seed), n + reps, dim)
+    for i in range(n):
+        est.add_observation(pts[i], nrm[i], 1)
+    tip = np.array([0.38, -0.12, 0.06]) if dim == 2 else np.array([0.42, -0.08, 0.16])
+    planner.plan(est.map_array(), tip)  # warm-up
+    upd, mp_, pl, cpu = [], [], [], []
+    status = ""
+    for i in range(n, n + reps):
+        c0 = time.process_time()
+        t0 = time.perf_counter()
+        ok, why = est.add_observation(pts[i], nrm[i], 1)
+        t1 = time.perf_counter()
+        m = est.map_array()
+        t2 = time.perf_counter()
+        res = planner.plan(m, tip)
+        t3 = time.perf_counter()
+        cpu.append(time.process_time() - c0)
+        if not ok:
+            raise RuntimeError(why)
+        upd.append(t1 - t0)
+        mp_.append(t2 - t1)
+        pl.append(t3 - t2)
+        status = res.status
+    med = lambda v: round(1e3 * float(np.median(v)), 2)  # noqa: E731
+    return {"kind": "decision", "dim": dim, "n": n, "normals": True, "method": method,
+            "active_method": est.active_method, "update_ms": med(upd), "map_ms": med(mp_), "plan_ms": med(pl),
+            "decision_ms": med(np.array(upd) + np.array(mp_) + np.array(pl)), "decision_cpu_ms": med(cpu),
+            "status": status, "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+
+
+def run_decisions(ns: list[int], methods: list[str], reps: int, exact_max_n: int, exact_dims=(2,),
+                  dims=(2, 3)) -> list[dict]:
+    records = []
+    for dim in dims:
+        for n in ns:
+            for method in methods:
+                if method == "exact" and (n > exact_max_n or dim not in exact_dims):
+                    continue
+                with mp.get_context("spawn").Pool(1) as pool:
+                    r = pool.apply(decision_case, (dim, n, method, reps, 0))
+                records.append(r)
+                print(f"decision {dim}D n={n:4d} {method:5s} | update {r['update_ms']:8.2f} ms | map "
+                      f"{r['map_ms']:7.1f} ms | plan {r['plan_ms']:7.1f} ms | decision {r['decision_ms']:8.1f} ms "
+                      f"(cpu {r['decision_cpu_ms']:.1f}) | {r['status']} | peak RSS {r['peak_rss_mb']:.0f} MB",
+                      flush=True)
+    for (dim, n), ms in DECISION_GOALS_MS.items():
+        for r in (r for r in records if r["dim"] == dim and r["n"] == n and r["method"] == "local"):
+            print(f"goal (decision, local, {dim}D, n={n}): <= {ms:.0f} ms: {r['decision_ms']:.1f} ms "
+                  f"(cpu {r['decision_cpu_ms']:.1f}) -> {'MET' if r['decision_ms'] <= ms else 'NOT MET'}")
+    return records
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", help="also write the records to this file")
     ap.add_argument("--repeat", type=int, default=5, help="decisions per timing (median and min)")
     ap.add_argument("--candidates", type=int, default=200,
                     help="candidates per map (gpis_estimator default: 200)")
+    ap.add_argument("--decision-ns", type=int, nargs="*", default=[200, 1000, 2000],
+                    help="whole decision (update + map + plan) at these contact counts; none to skip")
+    ap.add_argument("--decision-methods", nargs="+", default=["exact", "local"], choices=["exact", "local"])
+    ap.add_argument("--decision-reps", type=int, default=7, help="decisions per case (median)")
+    ap.add_argument("--decision-exact-max-n", type=int, default=200, help="largest n run with the exact path")
+    ap.add_argument("--decision-exact-dims", type=int, nargs="*", default=[2], choices=[2, 3],
+                    help="dims run with the exact path (3D with normals: ~1.5 s per contact at n = 200)")
     args = ap.parse_args(argv)
     records = run(args.repeat, args.candidates)
+    if args.decision_ns:
+        records += run_decisions(sorted(args.decision_ns), args.decision_methods, args.decision_reps,
+                                 args.decision_exact_max_n, tuple(args.decision_exact_dims))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(records, fh, indent=2)

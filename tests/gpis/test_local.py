@@ -1,0 +1,219 @@
+"""The scalable path (method 'local') against the exact GP on the same data.
+
+The reference is an independent dense solve: K(X, X) + diag(noise) from ``cross_cov``
+(itself checked against explicit loops in test_gp_reference.py), ``numpy.linalg.cholesky``
+once on all rows, mean m + k^T K^-1 (y - m), variance k(0) - |L^-1 k|^2. Bounds (issue
+14): zero level set within 0.5 mm, candidate variances within 5 % relative, IoU within
+0.005 of the exact estimate, on a non-convex 2D star and a non-convex 3D lobed body.
+"""
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_triangular
+
+from tactile_gpis.estimator import ShapeEstimator
+from tactile_gpis.gp import VALUE, cross_cov, gradient_rows
+
+from shapes import iou, lobed_sdf, lobed_surface, star_inside, star_surface
+
+LEVEL_SET_TOL_M = 0.5e-3
+VAR_REL_TOL = 0.05
+IOU_TOL = 0.005
+
+
+class DenseGP:
+    """Exact posterior of the estimator's model by one dense Cholesky of all rows."""
+
+    def __init__(self, est: ShapeEstimator) -> None:
+        X, t, y, nv = [], [], [], []
+        for x, value, var, normal, normal_var in est._obs:
+            X.append(x[None])
+            t.append([VALUE])
+            y.append([value])
+            nv.append([var])
+            if normal is not None:
+                Xg, tg = gradient_rows(x[None])
+                X.append(Xg)
+                t.append(tg)
+                y.append(normal)
+                nv.append(np.full(est.dim, normal_var))
+        self.X, self.t = np.vstack(X), np.concatenate(t)
+        self.kernel, self.mean_fn, self.dim = est.kernel, est.gp.mean_fn, est.dim
+        mv, mg = self.mean_fn(self.X)
+        prior = np.where(self.t < 0, mv, mg[np.arange(len(self.t)), np.maximum(self.t, 0)])
+        K = cross_cov(self.kernel, self.X, self.t, self.X, self.t)
+        K[np.diag_indices_from(K)] += np.concatenate(nv) + est.gp.jitter
+        self.L = np.linalg.cholesky(K)
+        self.alpha = solve_triangular(self.L.T, solve_triangular(self.L, np.concatenate(y) - prior, lower=True))
+
+    def mean_grad(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Xg, tg = gradient_rows(Q)
+        K = cross_cov(self.kernel, np.vstack([Q, Xg]), np.r_[np.full(len(Q), VALUE), tg], self.X, self.t)
+        mv, mg = self.mean_fn(Q)
+        f = K @ self.alpha
+        return mv + f[: len(Q)], mg + f[len(Q):].reshape(len(Q), self.dim)
+
+    def mean(self, Q: np.ndarray) -> np.ndarray:
+        return self.mean_fn(Q)[0] + np.concatenate([
+            cross_cov(self.kernel, Q[s:s + 4000], np.full(len(Q[s:s + 4000]), VALUE), self.X, self.t) @ self.alpha
+            for s in range(0, len(Q), 4000)])
+
+    def variance(self, Q: np.ndarray) -> np.ndarray:
+        W = solve_triangular(self.L, cross_cov(self.kernel, self.X, self.t, Q, np.full(len(Q), VALUE)), lower=True)
+        return self.kernel.k0 - np.einsum("ij,ij->j", W, W)
+
+
+def crossing_nodes(mean: np.ndarray) -> np.ndarray:
+    """Flat ids of lattice nodes at the ends of an edge whose ends differ in sign."""
+    flat_ids = np.arange(mean.size).reshape(mean.shape)
+    out = []
+    for ax in range(mean.ndim):
+        a = np.take(flat_ids, range(mean.shape[ax] - 1), axis=ax).ravel()
+        b = np.take(flat_ids, range(1, mean.shape[ax]), axis=ax).ravel()
+        s = (mean.ravel()[a] < 0) != (mean.ravel()[b] < 0)
+        out += [a[s], b[s]]
+    return np.unique(np.concatenate(out))
+
+
+def compare(est: ShapeEstimator, truth_inside) -> dict:
+    """Errors of the estimate against the dense exact GP on the same observations."""
+    ref = DenseGP(est)
+    mean = est.lattice_mean()
+    nodes = crossing_nodes(mean)
+    P = est._lattice[nodes]
+    mu, g = ref.mean_grad(P)
+    level = np.abs(mean.ravel()[nodes] - mu) / np.linalg.norm(g, axis=1)
+    m = est.map_array()
+    cand = m[m["kind"] == 1]
+    C = np.column_stack([cand["x"], cand["y"], cand["z"]])[:, : est.dim]
+    var_ref = ref.variance(C)
+    rel = np.abs(cand["variance"] - var_ref) / var_ref
+    sl = tuple(slice(None, None, 2) for _ in range(est.dim))
+    Q = est._lattice.reshape(*est.lattice_shape, est.dim)[sl].reshape(-1, est.dim)
+    ins_local, ins_exact, truth = mean[sl].ravel() < 0, ref.mean(Q) < 0, truth_inside(Q)
+    return {"level_set_m": float(level.max()), "var_rel": float(rel.max()), "n_cand": len(C),
+            "iou_diff": abs(iou(ins_local, truth) - iou(ins_exact, truth)), "iou_local": iou(ins_local, truth)}
+
+
+def fill(est: ShapeEstimator, pts: np.ndarray, nrm: np.ndarray) -> None:
+    for p, n in zip(pts, nrm):
+        ok, why = est.add_observation(p, n, 1)
+        assert ok, why
+
+
+def star_contacts(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    theta = np.sort(np.random.default_rng(seed).uniform(0, 2 * np.pi, n))
+    p, nrm = star_surface(theta)
+    return np.column_stack([p, np.full(n, 0.06)]), np.column_stack([nrm, np.zeros(n)])
+
+
+def check(res: dict) -> None:
+    assert res["n_cand"] >= 50
+    assert res["level_set_m"] <= LEVEL_SET_TOL_M, res
+    assert res["var_rel"] <= VAR_REL_TOL, res
+    assert res["iou_diff"] <= IOU_TOL, res
+    assert res["iou_local"] >= 0.9, res  # a real shape, not an empty estimate matching an empty one
+
+
+@pytest.mark.parametrize("n", [200, pytest.param(2000, marks=pytest.mark.slow)])
+def test_local_matches_exact_on_a_2d_star(n):
+    est = ShapeEstimator.from_params({"mode": "2d", "method": "local", "duplicate_distance_m": 0.0})
+    fill(est, *star_contacts(n))
+    assert est.active_method == "local"
+    check(compare(est, lambda Q: star_inside(Q)))
+
+
+@pytest.mark.parametrize("n", [200, pytest.param(2000, marks=pytest.mark.slow)])
+def test_local_matches_exact_on_a_3d_lobed_body(n):
+    est = ShapeEstimator.from_params({"mode": "3d", "method": "local", "duplicate_distance_m": 0.0})
+    fill(est, *lobed_surface(n))
+    check(compare(est, lambda Q: (lobed_sdf(Q) < 0) & (Q[:, 2] >= 0)))
+
+
+def test_local_keeps_up_with_the_exact_path_from_few_contacts():
+    """From the first contact on (anchors committed one by one) the local lattice mean
+    matches the exact path's incrementally maintained lattice mean near the surface."""
+    pts, nrm = star_contacts(40, seed=3)
+    params = {"mode": "2d", "lattice.points_per_axis_2d": 64, "duplicate_distance_m": 0.0}
+    exact = ShapeEstimator.from_params(params)
+    local = ShapeEstimator.from_params({**params, "method": "local"})
+    for k, (p, n) in enumerate(zip(pts, nrm)):
+        assert exact.add_observation(p, n, 1)[0] and local.add_observation(p, n, 1)[0]
+        if k in (0, 5, 39):
+            nodes = crossing_nodes(local.lattice_mean())
+            diff = np.abs(local.lattice_mean().ravel()[nodes] - exact.lattice_mean().ravel()[nodes])
+            assert diff.max() < LEVEL_SET_TOL_M, (k, diff.max())
+    probes = np.vstack([pts - 0.003 * nrm, pts + 0.003 * nrm])  # 3 mm inside / outside every contact
+    np.testing.assert_array_equal(local.inside(probes), exact.inside(probes))
+    assert local.inside(probes[:40]).all() and not local.inside(probes[40:]).any()
+
+
+def test_auto_switches_at_the_threshold_and_keeps_the_estimate():
+    pts, nrm = star_contacts(60, seed=1)
+    params = {"mode": "2d", "lattice.points_per_axis_2d": 64, "duplicate_distance_m": 0.0}
+    est = ShapeEstimator.from_params({**params, "method": "auto", "local.auto_min_contacts": 30})
+    exact = ShapeEstimator.from_params(params)
+    for k, (p, n) in enumerate(zip(pts, nrm)):
+        est.add_observation(p, n, 1)
+        exact.add_observation(p, n, 1)
+        assert est.active_method == ("exact" if k + 1 < 30 else "local")
+    nodes = crossing_nodes(est.lattice_mean())
+    assert np.abs(est.lattice_mean().ravel()[nodes] - exact.lattice_mean().ravel()[nodes]).max() < LEVEL_SET_TOL_M
+    est.reset()
+    assert est.active_method == "exact" and est.n_observations == 0
+    np.testing.assert_allclose(est.lattice_mean(), ShapeEstimator.from_params(params).lattice_mean())
+
+
+def test_local_rejection_leaves_the_state_unchanged():
+    est = ShapeEstimator.from_params({"mode": "2d", "method": "local", "lattice.points_per_axis_2d": 64,
+                                      "duplicate_distance_m": 0.0, "jitter": 0.0, "noise.contact_var_m2": 0.0,
+                                      "use_normals": False})
+    pts, _ = star_contacts(30, seed=2)
+    fill(est, pts, np.zeros_like(pts))
+    before = est.lattice_mean().copy()
+    ok, why = est.add_observation(pts[7], None, 1)  # the same point, noise-free: singular
+    assert not ok and "rejected by the GP" in why
+    assert est.n_observations == 30 and est.local.n_obs == 30
+    np.testing.assert_array_equal(est.lattice_mean(), before)
+
+
+def test_local_map_has_the_exact_layout():
+    p = {"mode": "3d", "lattice.points_per_axis_3d": 24}
+    exact, local = ShapeEstimator.from_params(p), ShapeEstimator.from_params({**p, "method": "local"})
+    pts, nrm = lobed_surface(60)
+    fill(exact, pts, nrm)
+    fill(local, pts, nrm)
+    a, b = exact.map_array(), local.map_array()
+    assert a.dtype == b.dtype
+    assert (a["kind"] == 0).sum() == (b["kind"] == 0).sum() == 24 ** 3
+    np.testing.assert_array_equal(a["x"][: 24 ** 3], b["x"][: 24 ** 3])
+    assert (b["kind"] == 1).sum() >= 50 and np.isfinite(b["variance"]).all() and (b["variance"] >= 0).all()
+
+
+def test_local_state_grows_linearly_without_lattice_sized_copies():
+    """Bytes held per observation stay bounded (no lattice-sized block per contact) and
+    doubling the contacts at most about doubles the state."""
+    est = ShapeEstimator.from_params({"mode": "3d", "method": "local", "duplicate_distance_m": 0.0})
+    pts, nrm = lobed_surface(800, seed=4)
+    M = int(np.prod(est.lattice_shape))
+    fixed = est.local.state_bytes()  # lattice-sized arrays and the prior band, before any contact
+    sizes = {}
+    for k, (p, n) in enumerate(zip(pts, nrm), 1):
+        est.add_observation(p, n, 1)
+        if k in (len(pts) // 2, len(pts)):
+            sizes[k] = est.local.state_bytes() - fixed
+    half, full = sizes[len(pts) // 2], sizes[len(pts)]
+    assert full <= 2.6 * half, sizes
+    per_contact = (full - half) / (len(pts) - len(pts) // 2)
+    # the exact path holds 4 rows of V per contact, 4 lattices of doubles; this is < 0.15 of one
+    assert per_contact < 0.15 * M * 8, (per_contact, M * 8)
+
+
+@pytest.mark.parametrize("params, match", [
+    ({"method": "fast"}, "method must be one of"),
+    ({"local.blend": 1.5}, "local.blend must be in"),
+    ({"local.context_m": -0.01}, "local.context_m must be > 0"),
+])
+def test_bad_local_parameters_are_refused(params, match):
+    with pytest.raises(ValueError, match=match):
+        ShapeEstimator.from_params(params)
