@@ -254,3 +254,47 @@ def test_commander_rejects_bad_goals_and_paths_and_runs_the_next_valid_one(ros_g
     g.wait_for(lambda: len(planned) >= 3 and 200 in {int(done_values(m)["goal_stamp_ns"]) for m in done}, 20,
                "the valid goal planned")
     assert "dry_run" in done_values([m for m in done if done_values(m)["goal_stamp_ns"] == "200"][0])["reason"]
+
+
+def test_viz_ignores_bad_contacts_maps_and_joint_states_and_draws_the_valid_contact(ros_graph):
+    from sensor_msgs.msg import JointState
+    from visualization_msgs.msg import MarkerArray
+
+    g = ros_graph
+    g.start("viz", ["viz", "--ros-args", "-p", "arm_period_s:=0.0"])
+    markers = g.collect("/tactile/contact_markers", MarkerArray, qos.LATCHED)
+    arm = g.collect("/viz/arm", MarkerArray, qos.SENSOR)
+    contacts_pub = g.node.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
+    map_pub = g.node.create_publisher(PointCloud2, topics.VARIANCE_MAP, qos.MAP)
+    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+    g.wait_for(lambda: contacts_pub.get_subscription_count() and map_pub.get_subscription_count()
+               and js_pub.get_subscription_count() and markers.publishers and arm.publishers, 30, "the viz node")
+    nan = _contact(0.3)
+    nan["x"] = np.nan
+    flabel = np.zeros(1, dtype=[(n, np.float64) for n in fields.CONTACT_DTYPE.names])
+    for n in fields.CONTACT_DTYPE.names:
+        flabel[n] = _contact(0.9)[n]
+    flabel["label"] = np.nan
+    bad = [to_pointcloud2(nan, "world"), to_pointcloud2(flabel, "world"), to_pointcloud2(_contact(1.5), "base_link"),
+           *_broken_clouds(to_pointcloud2(_contact(), "world")).values()]
+    for msg in bad:
+        contacts_pub.publish(msg)
+    one_node = sphere_map(64, 2, seed=3)[:1]  # a single lattice node: not a grid
+    map_pub.publish(to_pointcloud2(one_node, "world"))
+    names = [f"panda_joint{i}" for i in range(1, 8)]
+    for positions in ([float("nan")] * 7, [0.0] * 5):
+        js_pub.publish(JointState(name=names, position=positions))
+    valid = _contact(2.0)
+    contacts_pub.publish(to_pointcloud2(valid, "world", Time(sec=1)))
+    js_pub.publish(JointState(name=names, position=[0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]))
+
+    def drawn(msg):
+        return [(p.x, p.y, p.z) for m in msg.markers if m.ns in ("contacts", "free_space") for p in m.points]
+
+    def valid_drawn():
+        return arm and [m for m in markers if np.any(np.all(np.isclose(drawn(m), fields.xyz(valid)), axis=1))]
+
+    g.wait_for(valid_drawn, 20, "the valid contact drawn and the arm")
+    np.testing.assert_allclose(drawn(valid_drawn()[0]), fields.xyz(valid), atol=1e-12)  # nothing else drawn
+    assert all(np.isfinite([p.x for m in a.markers for p in m.points]).all() for a in arm)
+    assert g.procs["viz"].alive()

@@ -99,11 +99,17 @@ class VizNode(Node):
     # -- contacts ------------------------------------------------------------
     def on_contacts(self, msg: PointCloud2) -> None:
         try:
+            if msg.header.frame_id != self.p.frame_id:  # drawn in the fixed frame, it would be misplaced
+                raise ValueError(f"frame_id '{msg.header.frame_id}', expected '{self.p.frame_id}'")
             pts = from_pointcloud2(msg, list(fields.CONTACT_DTYPE.names))
         except ValueError as exc:
             self.get_logger().warning(f"contacts cloud ignored: {exc}")
             return
-        pts = pts.astype(fields.CONTACT_DTYPE)
+        ok = np.isfinite(fields.xyz(pts)).all(axis=1) & np.isin(np.asarray(pts["label"], dtype=float),
+                                                                (fields.LABEL_FREE_SPACE, fields.LABEL_CONTACT))
+        if not ok.all():
+            self.get_logger().warning(f"{int((~ok).sum())} contact point(s) ignored: not finite or unknown label")
+        pts = pts[ok].astype(fields.CONTACT_DTYPE)
         if len(self.contacts):
             pts = pts[~np.isin(pts, self.contacts)]  # exact duplicates: a durable writer's re-sent history
         if len(pts) == 0:
@@ -167,7 +173,7 @@ class VizNode(Node):
         if self.last_arm_ns is not None and 0 <= now - self.last_arm_ns < self.p.arm_period_s * 1e9:
             return
         q = joint_vector(list(msg.name), list(msg.position), self.arm.joint_names)
-        if q is None:
+        if q is None or not np.isfinite(q).all():
             return
         self.last_arm_ns = now
         pts = arm_polyline(self.arm, q, self.link_frames)
