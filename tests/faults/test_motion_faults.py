@@ -100,9 +100,11 @@ def test_estop_during_an_approach_then_a_touch_from_where_the_arm_stopped(ros_gr
     g.wait_for(lambda: len(watch.sent) >= 2, 40, "the approach trajectory")
     g.wait_for(lambda: np.dot(_xyz(poses[-1]) - PRE, DIRECTION) > 0.002, 10, "the tip to move along the approach")
     estop.publish(Bool(data=True))
-    g.wait_for(lambda: done, 10, "touch_done")
+    g.wait_for(lambda: done and len(watch.sent) >= 3, 10, "touch_done and the stop")
     assert done[0].message == "aborted" and "e-stop" in done_values(done[0])["reason"]
-    assert watch.sent[-1].points == []  # the stop
+    assert watch.sent[2].points == []  # the stop: an empty trajectory
+    n_poses = len(poses)
+    g.wait_for(lambda: len(poses) > n_poses + 10, 10, "fingertip poses after the stop")
     stopped_at = _xyz(poses[-1])
     estop.publish(Bool(data=False))
     g.wait_for(lambda: "e-stop released" in g.procs["arm"].log(), 10, "the commander to take the release")
