@@ -46,11 +46,16 @@ def _one_run(job: dict) -> dict:
     """Run one (object, strategy, seed); keep the final shapes for the gallery."""
     exp = Experiment(mode=job["mode"], object_name=job["object"], strategy=job["strategy"],
                      alpha=job["alpha"], seed=job["seed"], touches=job["touches"],
-                     user_params_files=job["params"])
+                     user_params_files=job["params"], touch=job.get("touch"))
     loop = ExplorationLoop(exp)
     t0 = time.perf_counter()
     report = loop.run()
     report["wall_s"] = time.perf_counter() - t0
+    report["touch"] = loop.touch  # poke | slide; 2D: travel in laps of this contour (tactile_bringup.slide_tables)
+    if exp.mode == "2d":
+        from tactile_sim.contour import contour_length_m
+
+        report["contour_length_m"] = contour_length_m(loop.evaluator.obj)
     est = loop.estimator.surface_points()
     report["_shape"] = (est[:, :2].tolist(), loop.true_surface[:, :2].tolist())
     return report
@@ -363,7 +368,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if touches is None:
             touches = 30 if args.mode == "2d" else 60
         jobs = [dict(mode=args.mode, object=o, strategy=s, seed=seed, alpha=args.alpha,
-                     touches=touches, params=[str(p) for p in args.params])
+                     touches=touches, params=[str(p) for p in args.params], touch=args.touch)
                 for o in objects for s in strategies for seed in range(args.seeds)]
         # Fail fast on bad names before starting the pool.
         Experiment(mode=args.mode, object_name=objects[0], strategy=strategies[0], touches=1,

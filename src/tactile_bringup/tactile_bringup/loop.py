@@ -32,6 +32,7 @@ from .motion import MotionModel, polyline_length_m
 from .progress import observe, stop_reason, touch_record
 from .report import make_report
 from .sensing import SimulatedFinger
+from .slide_touch import observe_stream, slide_touch
 
 ProgressFn = Callable[[dict], None]
 
@@ -63,6 +64,7 @@ class ExplorationLoop:
         self.finger = SimulatedFinger.from_params(experiment, self.evaluator.obj)
         self.motion = MotionModel.from_params(experiment.planner_params)
         self.touch = str(experiment.planner_params.get("touch", "poke"))  # 'poke' | 'slide' (the planner's too)
+        self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01))
 
     @property
     def true_surface(self) -> np.ndarray:
@@ -88,23 +90,14 @@ class ExplorationLoop:
             path = np.vstack([tip[None, :], plan.path_xyz])
             hit = self.finger.path_contact(path, len(touches))
             slide = None
-            if hit is None and self.touch == "slide" and np.isfinite(plan.slide_length_m):
-                # Approach, then slide along the surface from the contact (tactile_sim.slide), back off.
-                path_m = polyline_length_m(path)
-                result = self.finger.approach(plan.pretouch_xyz, -np.asarray(plan.normal_xyz), len(touches))
-                if result.contact:
-                    slide, tip_end = self.finger.slide(result, plan.slide_direction_xyz, plan.slide_length_m,
-                                                       len(touches))
-                    back_m = float(np.linalg.norm(tip_end - slide.tip_path_xyz[-1]))
-                    travel_m += path_m + result.travel_m + slide.travel_m + back_m
-                    # the slide's robot time is its ticks at the control rate (weak-contact ticks included)
-                    time_s += self.motion.slide_time_s(path_m, result.travel_m,
-                                                       slide.duration_s * self.motion.slide_speed_mps, back_m)
-                    tip = tip_end
-                else:
-                    travel_m += path_m + 2.0 * result.travel_m
-                    time_s += self.motion.touch_time_s(path_m, result.travel_m)
-                    tip = np.asarray(plan.pretouch_xyz, dtype=float)
+            if self.touch == "slide" and np.isfinite(plan.slide_length_m):
+                # Approach (or the path's contact), slide along the surface, back off (slide_touch).
+                st = slide_touch(self.finger, self.motion, plan, path, hit, len(touches), self.standoff_m)
+                result, slide, tip = st.approach, st.slide, st.tip_xyz
+                travel_m += st.travel_m
+                time_s += st.time_s
+                free_m = st.path_followed_m
+                hit = None if free_m is None else hit
             elif hit is None:
                 path_m = polyline_length_m(path)
                 result = self.finger.approach(plan.pretouch_xyz, -np.asarray(plan.normal_xyz), len(touches))
@@ -119,9 +112,10 @@ class ExplorationLoop:
             t1 = time.perf_counter()
             point = result.point_xyz if result.contact else result.tip_xyz_at_stop
             observe(self.estimator, point, result.normal_xyz, result.contact)
-            if slide is not None:  # the slide's thinned contact stream, in the order sensed
-                for p_k, n_k in zip(slide.points_xyz, slide.normals_xyz):
-                    observe(self.estimator, p_k, n_k, True)
+            stream = None
+            if slide is not None:  # the slide's thinned contact stream, in the order sensed, with checkpoints
+                stream = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,
+                                        time_s - st.time_s)
                 point, normal = (slide.points_xyz[-1], slide.normals_xyz[-1]) if slide.n_contacts else \
                     (point, result.normal_xyz)
             else:
@@ -129,7 +123,8 @@ class ExplorationLoop:
             update_ms = (time.perf_counter() - t1) * 1e3
             record = touch_record(len(touches), plan.target_xyz, result.contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
-                                  path_xyz=path, path_followed_m=None if hit is None else free_m, slide=slide)
+                                  path_xyz=path, path_followed_m=None if hit is None else free_m, slide=slide,
+                                  stream=stream)
             touches.append(record)
             if progress is not None:
                 progress(record)

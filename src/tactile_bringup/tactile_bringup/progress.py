@@ -50,7 +50,8 @@ def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
 
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
                  time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
-                 path_xyz=None, path_followed_m: Optional[float] = None, slide=None) -> dict:
+                 path_xyz=None, path_followed_m: Optional[float] = None, slide=None,
+                 stream: Optional[list] = None) -> dict:
     """The report entry of one touch, with metrics of the estimate after it.
 
     ``path_xyz`` (K, 3): the free-space path from the tip to the pre-touch point
@@ -58,7 +59,9 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
     ``slide`` (a :class:`tactile_sim.slide.SlideResult`, or None for a poke): its
     slid length ``slide_m``, why it stopped ``slide_stop`` and its contacts
     ``slide_contacts`` (K, 3, 0.1 mm); ``contacts_gathered`` counts the touch's
-    contacts (a poke: 1 or 0).
+    contacts (a poke: 1 or 0). ``stream``: checkpoints of the estimate while the
+    slide's contacts streamed in (``{travel_m, time_s, iou, iou_reachable,
+    contacts}``, cumulative over the run; :func:`tactile_bringup.slide_touch.observe_stream`).
     """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
@@ -82,6 +85,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "slide_stop": None if slide is None else slide.stop.value,
         "slide_contacts": None if slide is None else np.round(slide.points_xyz, 4).tolist(),
         "contacts_gathered": int(contact) + (0 if slide is None else slide.n_contacts),
+        "stream": stream,
     }
 
 

@@ -69,7 +69,7 @@ class SimulatedFinger:
         path_step_m = float(planner.get("tip_speed_mps", 0.1)) / frame_rate_hz
         back_off_m = geometry.pretouch_offset_m
         servo = SlideServoConfig.from_params({**experiment.arm_params, "slide.slide_speed_mps":
-                                              planner.get("slide_speed_mps", 0.02)}, "slide.")
+                                              planner.get("slide_speed_mps", 0.05)}, "slide.")
         g = experiment.gpis_params
         box = np.array([g["workspace.min_m"], g["workspace.max_m"]], dtype=float)
         return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m,
@@ -93,12 +93,15 @@ class SimulatedFinger:
         self.detector.update(self.model.frame(self.obj, back, np.eye(3), rng))  # off the surface: release
         return result, back
 
-    def approach(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, touch_index: int) -> ApproachResult:
-        """One guarded approach from the pre-touch point; the noise is seeded per touch."""
+    def approach(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, touch_index: int,
+                 max_travel_m: Optional[float] = None) -> ApproachResult:
+        """One guarded approach from the pre-touch point (``max_travel_m``: default the poke's
+        approach length); the noise is seeded per touch."""
         rng = np.random.default_rng([self.seed, touch_index])
         start = np.asarray(start_xyz, dtype=float)
+        travel = self.max_travel_m if max_travel_m is None else float(max_travel_m)
         result = simulate_approach(self.obj, self.model.layout, self.model, self.detector, start,
-                                   direction_xyz, self.max_travel_m, self.step_m, rng=rng)
+                                   direction_xyz, travel, self.step_m, rng=rng)
         # Retract: the finger leaves the object, so the detector's hysteresis releases.
         self.detector.update(self.model.frame(self.obj, start, np.eye(3), rng))
         return result

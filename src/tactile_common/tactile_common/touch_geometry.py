@@ -88,7 +88,7 @@ class MotionModel:
     tip_speed_mps: float = 0.10
     approach_speed_mps: float = 0.02
     dwell_s: float = 0.5
-    slide_speed_mps: float = 0.02
+    slide_speed_mps: float = 0.05
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "MotionModel":

@@ -31,6 +31,10 @@ stream: one every ``thin_distance_m`` of contact travel, or sooner when the
 normal has turned by ``thin_angle_rad`` (corners), so that the estimator is
 not flooded.
 
+``approach_depth_m`` is the guarded approach's depth before a slide (how far
+the skin may go beyond the estimated surface point: a slide's contact is
+worth a deeper search than a poke's ``max_depth_m``).
+
 How the commander uses it: at slide start build ``SlideServo(config,
 direction, length, box)``; on each control tick (``control_rate_hz``) call
 ``step(tip_xyz, contact)`` with the forward-kinematics tip and the driver's
@@ -63,7 +67,7 @@ class SlideStop(enum.Enum):
 class SlideServoConfig:
     """Servo parameters (see the module docstring for each symbol)."""
 
-    slide_speed_mps: float = 0.02
+    slide_speed_mps: float = 0.05
     control_rate_hz: float = 100.0
     target_force_n: float = 0.5
     min_force_n: float = 0.1
@@ -74,6 +78,7 @@ class SlideServoConfig:
     thin_distance_m: float = 0.005
     thin_angle_rad: float = 0.25
     lap_radius_m: float = 0.005
+    approach_depth_m: float = 0.06
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "") -> "SlideServoConfig":
@@ -88,7 +93,7 @@ class SlideServoConfig:
 
     def validate(self) -> "SlideServoConfig":
         for name in ("slide_speed_mps", "control_rate_hz", "target_force_n", "gain_m_per_n", "max_correction_m",
-                     "thin_distance_m"):
+                     "thin_distance_m", "approach_depth_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"slide servo {name} = {getattr(self, name)}: must be > 0")
         if not 0 <= self.min_force_n < self.target_force_n < self.max_force_n:
@@ -201,8 +206,10 @@ class SlideServo:
                     float(np.linalg.norm(self._flat(p - self.first_point))) < cfg.lap_radius_m:
                 return self._stop(SlideStop.LAP)
         t = _unit(self._flat(self.tangent - float(self.tangent @ n) * n))
-        if t is not None:
-            self.tangent = t
+        if t is None:  # the direction is along the normal: any tangent (z × n, else x × n)
+            t = _unit(np.cross([0.0, 0.0, 1.0], n))
+            t = t if t is not None else _unit(np.cross([1.0, 0.0, 0.0], n))
+        self.tangent = t
         if contact is None:
             correction = cfg.max_correction_m
         else:

@@ -41,7 +41,7 @@ from .maps import MapLattice
 
 @dataclass(frozen=True)
 class SlideParams:
-    max_length_m: float = 0.3
+    max_length_m: float = 0.6
     min_length_m: float = 0.02
     trace_step_m: float = 0.003
     known_var_m2: float = 0.0

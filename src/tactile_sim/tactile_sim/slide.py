@@ -12,7 +12,7 @@ World frame, metres.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Optional
 
 import numpy as np
@@ -31,7 +31,9 @@ class SlideResult:
     at every tick, from the start; ``slid_m``: the servo's slid length (sum of
     tangent steps); ``travel_m``: tip path length; ``stop``: why it ended;
     ``forces_all_n``: the force of every tick in contact (for tests);
-    ``duration_s``: robot time of the slide (ticks / control rate).
+    ``duration_s``: robot time of the slide (ticks / control rate);
+    ``point_ticks`` (K,): for each contact, the index into ``tip_path_xyz`` of
+    the tip where it was sensed (its time is that index / control rate).
     """
 
     points_xyz: np.ndarray
@@ -43,6 +45,7 @@ class SlideResult:
     stop: SlideStop
     forces_all_n: np.ndarray
     duration_s: float = 0.0
+    point_ticks: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
     @property
     def n_contacts(self) -> int:
@@ -72,8 +75,9 @@ def simulate_slide(obj: Any, model: SensorModel, detector: ContactDetector, serv
     R = np.asarray(rotation, dtype=float)
     tip = np.asarray(start_tip_xyz, dtype=float).reshape(3).copy()
     path = [tip.copy()]
-    pts, nrm, frc, f_all = [], [], [], []
+    pts, nrm, frc, f_all, ticks = [], [], [], [], []
     last_sense: Optional[ContactSense] = None
+    last_tick = 0
     while True:
         detector.update(model.frame(obj, tip, R, rng))
         est = detector.current if detector.in_contact else None
@@ -83,11 +87,12 @@ def simulate_slide(obj: Any, model: SensorModel, detector: ContactDetector, serv
             sense = ContactSense(point, normal, est.force_n)
             f_all.append(est.force_n)
             if est.force_n >= servo.config.min_force_n:
-                last_sense = sense
+                last_sense, last_tick = sense, len(path) - 1
                 if thinner.offer(sense):
                     pts.append(point)
                     nrm.append(normal)
                     frc.append(est.force_n)
+                    ticks.append(last_tick)
         step = servo.step(tip, sense)
         if step.target_xyz is not None:
             tip = np.asarray(step.target_xyz, dtype=float)
@@ -99,7 +104,9 @@ def simulate_slide(obj: Any, model: SensorModel, detector: ContactDetector, serv
         pts.append(last_sense.point_xyz)
         nrm.append(last_sense.normal_xyz)
         frc.append(last_sense.force_n)
+        ticks.append(last_tick)
     P = np.asarray(path)
     travel = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum()) if len(P) > 1 else 0.0
     return SlideResult(np.asarray(pts).reshape(-1, 3), np.asarray(nrm).reshape(-1, 3), np.asarray(frc),
-                       P, float(servo.slid_m), travel, step.stop, np.asarray(f_all), servo.duration_s)
+                       P, float(servo.slid_m), travel, step.stop, np.asarray(f_all), servo.duration_s,
+                       np.asarray(ticks, dtype=int))
