@@ -154,7 +154,7 @@ def test_slide_stops_cleanly_where_the_surface_ends(layout):
     assert res.stop in (SlideStop.LOST, SlideStop.FORCE)
     assert res.forces_all_n[:-1].max() <= cfg.max_force_n
     end = res.points_xyz[-1]
-    assert abs(end[0] - 0.46) < 0.003 and 0.03 - 0.006 < end[1] <= 0.03  # on a vertex the skin sinks in
+    assert abs(end[0] - 0.46) < 0.005 and 0.03 - 0.006 < end[1] <= 0.03  # on a vertex the skin sinks in
     assert np.all(res.points_xyz[:, 1] <= 0.03)
     assert res.slid_m < 0.03 + 0.01
 
