@@ -161,7 +161,7 @@ def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.nda
     """
     M = len(target_xyz)
     h = float(params.trace_step_m)
-    K = max(1, int(np.ceil(params.max_length_m / h)))
+    K = max(1, int(np.floor(params.max_length_m / h + 1e-9)))  # K·h ≤ the longest slide
     k_min = max(1, int(np.ceil(params.min_length_m / h - 1e-9)))
     t0 = start_tangents(normal_xyz)
     ok_start = np.asarray(reachable, bool) & np.isfinite(np.asarray(travel_m, dtype=float))
