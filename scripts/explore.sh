@@ -94,8 +94,8 @@ sim_rig:
 tactile_sensor:
   ros__parameters:
     port: "$sensor_link"
-$([ "$rig" = sim ] && printf '    %s\n' "device_clock_is_ros_time: true  # the simulated device stamps simulated time" "max_frame_age_s: 1.0  # simulated seconds: the rig may run several times faster than the wall clock")
-$([ "$rig" = sim ] && printf '%s\n' "arm_commander:" "  ros__parameters:" "    watchdog_timeout_s: 2.0  # the simulator, not an arm: on a loaded machine its joint states stall for a second")
+$([ "$rig" = sim ] && printf '    %s\n' "device_clock_is_ros_time: true  # the simulated device stamps simulated time" "max_frame_age_s: 5.0  # simulated seconds: the rig waits for the driver (lock-step), frames are never that old" "pose_wait_s: 5.0  # simulated seconds: a contact waits for the pose at its time (determinism under load)")
+$([ "$rig" = sim ] && printf '%s\n' "arm_commander:" "  ros__parameters:" "    watchdog_timeout_s: 2.0  # the simulator, not an arm: on a loaded machine its joint states stall for a second" "    start_lead_s: 0.5  # timed starts on the rig's 10 ms tick: every motion sampled identically (determinism)" "    start_grid_s: 0.01")
 explorer:
   ros__parameters:
     params_files: [$(printf '"%s", ' "${files[@]}" | sed 's/, $//')]

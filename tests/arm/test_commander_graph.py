@@ -25,7 +25,7 @@ SIM = ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/con
 ARM = ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
        "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "watchdog_timeout_s:=2.0"]
 NO_START = ["-p", "move_to_start:=false"]
-APPROACH_M = 0.01 + 0.01 + 0.02  # standoff + tip radius + max depth (config defaults)
+APPROACH_M = 0.01 + 0.02  # standoff + max depth: the skin goes max depth beyond the candidate (config defaults)
 
 
 def _publish_touch(graph, pre, direction, path, stamp_ns):

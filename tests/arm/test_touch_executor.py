@@ -29,6 +29,7 @@ class FakeArm:
         self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06]), np.eye(3)))
         self.tip_xyz = np.zeros(3)
         self.odometer_m = 0.0
+        self.motion_time_s = 0.0  # robot time in motions (each scripted verb takes 0.3 s)
         self.t = 0.0
         self._last = None
 
@@ -54,6 +55,7 @@ class FakeArm:
                                          contact=None)
             return False
         self.odometer_m += length
+        self.motion_time_s += 0.3
         self._last = SimpleNamespace(result=result, reason=result.name, traj=_traj(length), contact=contact,
                                      contact_stamp_ns=42 if contact is not None or result == TaskResult.CONTACT else 0)
         return True
@@ -101,7 +103,7 @@ def test_contact_touch():
     r = done[0]
     assert (r.outcome, r.observation_stamp_ns, r.goal_stamp_ns) == ("contact", 42, 7)
     assert r.travel_m == pytest.approx(0.34)
-    assert r.duration_s >= 0.5  # dwell included
+    assert r.duration_s == pytest.approx(3 * 0.3 + 0.5)  # three motions and the dwell, nothing else
     assert r.end_xyz_m == (0.4, 0.2, 0.06)  # nominal end: the pre-touch point (not the measured pose)
 
 

@@ -88,7 +88,7 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     assert len(contacts) == 2
     free = from_pointcloud2(contacts[1])
     assert free["label"][0] == fields.LABEL_FREE_SPACE
-    probe_end = fake - 0.02 * n2  # max depth beyond the candidate
+    probe_end = fake - (0.02 - TIP_RADIUS_M) * n2  # the skin max depth (0.02) beyond the candidate
     np.testing.assert_allclose(fields.xyz(free)[0], probe_end, atol=1e-3)
     assert np.linalg.norm(probe_end[:2] - CENTRE) - RADIUS_M - TIP_RADIUS_M > 0.009  # really free
     print(f"contact error {abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) * 1e3:.2f} mm, "

@@ -70,7 +70,8 @@ def test_faults_are_injected_and_match_decoder_counts(tmp_path):
     assert s.garbage_bursts > 10 and s.crc_corrupted > 10 and s.frames_dropped > 10
     assert dec.stats.crc_errors >= s.crc_corrupted
     assert len(frames) == s.frames_sent - s.crc_corrupted
-    assert dec.stats.lost_frames == s.frames_dropped + s.crc_corrupted - (0 if frames[-1].seq == 399 else 399 - frames[-1].seq)
+    # the decoder counts gaps between frames it saw: lost frames before the first or after the last are invisible
+    assert dec.stats.lost_frames == s.frames_dropped + s.crc_corrupted - frames[0].seq - (399 - frames[-1].seq)
     assert all(f.values[3] == 9000 for f in frames)
 
 
@@ -116,3 +117,32 @@ def test_stale_link_is_replaced(tmp_path):
 def test_bad_fault_config_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="probability"):
         SimulatedSensorDevice(BALL, LAYOUT, tmp_path / "x", faults=FaultConfig(drop_prob=2.0))
+
+
+def test_loaded_frames_draw_noise_keyed_on_the_motion_not_on_the_time_before_it(tmp_path):
+    """Two devices that idle for different times before the same motion sense the same frames."""
+    a = SimulatedSensorDevice(BALL, LAYOUT, tmp_path / "a", seed=5)
+    b = SimulatedSensorDevice(BALL, LAYOUT, tmp_path / "b", seed=5)
+    a.begin_motion(1234, start_s=0.50)
+    b.begin_motion(1234, start_s=2.75)
+    for j in range(5):
+        na = a.noise_rng(k=100 + j, t_s=0.50 + j * 0.005, loaded=True).normal(size=8)
+        nb = b.noise_rng(k=550 + j, t_s=2.75 + j * 0.005, loaded=True).normal(size=8)
+        np.testing.assert_array_equal(na, nb)
+    other = a.noise_rng(k=100, t_s=0.50, loaded=True).normal(size=8)
+    a.begin_motion(999, start_s=0.50)
+    assert not np.array_equal(other, a.noise_rng(k=100, t_s=0.50, loaded=True).normal(size=8))
+
+
+def test_unloaded_noise_repeats_so_any_calibration_window_gives_the_same_baseline(tmp_path):
+    dev = SimulatedSensorDevice(BALL, LAYOUT, tmp_path / "c", seed=1)
+    n = 40  # the driver's default calibration_frames, a multiple of the idle period
+    assert n % dev.IDLE_NOISE_PERIOD == 0
+    clean = dev.model.baseline_counts
+    frames = np.array([dev.model.add_noise(clean, dev.noise_rng(k, k * 0.005, loaded=False)) for k in range(200)],
+                      dtype=float)
+    windows = [frames[s:s + n] for s in (0, 3, 17, 101)]
+    for w in windows[1:]:
+        np.testing.assert_allclose(w.mean(axis=0), windows[0].mean(axis=0), atol=1e-9)
+        np.testing.assert_allclose(w.std(axis=0), windows[0].std(axis=0), atol=1e-9)
+    assert (np.diff(frames[:n], axis=0) != 0).mean() > 0.5  # values keep changing: never taken for stuck

@@ -19,8 +19,13 @@
   restarted estimator rebuilds its estimate from every observation so far.
 - ``COMMANDS``: trajectories to the controller: RELIABLE, VOLATILE. A command
   must never reach a controller that joins late (that would replay motion).
+- ``STATE``: joint states and the fingertip pose: RELIABLE, VOLATILE, a
+  deep queue (1000, 10 s at 100 Hz). The driver places each contact with the
+  fingertip pose interpolated at the frame's time: a pose dropped under load
+  would move the contact by up to a frame's travel and make runs differ.
 - ``SENSOR``: high-rate streams where the newest sample matters most (raw
-  taxels, fingertip pose, joint states): RELIABLE, VOLATILE, shallow queue.
+  taxels; readers of the pose that only want the latest): RELIABLE, VOLATILE,
+  shallow queue.
 - ``CLOCK``: as rclpy's time source subscribes to ``/clock``.
 
 A TRANSIENT_LOCAL reader matches only TRANSIENT_LOCAL writers: whoever
@@ -61,6 +66,13 @@ OBSERVATIONS = QoSProfile(
 COMMANDS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
+STATE = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )

@@ -12,6 +12,7 @@ FINGERTIP_FRAME = "fingertip"
 # Sensing.
 CONTACTS = "/tactile/contacts"
 TAXELS = "/tactile/taxels"
+SENSOR_DECIDED = "/tactile/decided_through"  # DiagnosticStatus: frames judged up to a stamp, contacts sent so far
 DIAGNOSTICS = "/diagnostics"
 
 # Estimation.

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState, PointCloud2
@@ -39,12 +40,13 @@ from trajectory_msgs.msg import JointTrajectory
 
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
+from tactile_common.stamps import stamp_s, time_from_ns
 from tactile_driver import arm_msgs
 from tactile_driver.contact import back_off_target
 from tactile_driver.ik import IKSettings
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, home_configuration
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog, WorkspaceBox
-from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, plan_tip_path
+from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, plan_tip_path, time_parameterize
 
 
 class TaskResult(enum.Enum):
@@ -83,6 +85,8 @@ class CommanderConfig:
     goal_tolerance_rad: float = 0.002
     goal_time_tolerance_s: float = 2.0
     contact_latency_s: float = 0.25
+    start_lead_s: float = 0.0  # > 0: trajectories start this long after they are sent (header.stamp), not on receipt
+    start_grid_s: float = 0.0  # > 0: and on a multiple of this (the simulated rig's tick), for identical sampling
     watchdog_timeout_s: float = 0.5
     control_period_s: float = 0.01
     dry_run: bool = False
@@ -124,9 +128,15 @@ class ArmCommander:
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._last_tick_s = self._steady_s()
         self.q: Optional[np.ndarray] = None  # measured joints
+        self.q_stamp_s = -np.inf  # their stamp (the controller's clock)
+        self.sensor_decided_s = -np.inf  # the driver has judged every frame up to this stamp...
+        self.sensor_contacts_sent = 0  # ...having sent this many contacts by then
+        self.contacts_received = 0  # contact clouds (label 1) received from the driver
         self.tip_xyz: Optional[np.ndarray] = None
         self.odometer_m = 0.0  # tip path length over all measured states
+        self.motion_time_s = 0.0  # time spent in motions (robot time, without timed-start waits)
         self.approach_origin_xyz: Optional[np.ndarray] = None
+        self.approach_origin_q: Optional[np.ndarray] = None
         self.back_off_xyz: Optional[np.ndarray] = None
         self._task: Optional[_Task] = None
         self._dry_q: Optional[np.ndarray] = None  # dry run: end of the last plan (the arm "is" there)
@@ -136,10 +146,11 @@ class ArmCommander:
         self._pub_traj = node.create_publisher(JointTrajectory, c.trajectory_topic, qos.COMMANDS)
         self._pub_planned = node.create_publisher(JointTrajectory, c.planned_topic, qos.EVENTS)
         self._pub_pose = node.create_publisher(
-            arm_msgs.PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR) if c.publish_fingertip_pose else None
-        node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state, qos.SENSOR)
+            arm_msgs.PoseStamped, topics.FINGERTIP_POSE, qos.STATE) if c.publish_fingertip_pose else None
+        node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state, qos.STATE)
         node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.OBSERVATIONS)
         node.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.LATCHED)
+        node.create_subscription(DiagnosticStatus, topics.SENSOR_DECIDED, self._on_sensor_decided, qos.SENSOR)
         node.create_timer(c.control_period_s, self._update, clock=self._steady)
 
     # -- verbs ------------------------------------------------------------------
@@ -161,17 +172,43 @@ class ArmCommander:
             return self._reject("approach", "direction must be a non-zero vector and max depth positive")
         if self.tip_xyz is None and not self.cfg.dry_run:
             return self._reject("approach", "no joint state yet")
-        origin = self._plan_start()[1]
+        q_origin, origin = self._plan_start()
         ok = self._start("approach", origin + d / n * max_depth_m, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
         if ok:
-            self.approach_origin_xyz = origin
+            self.approach_origin_xyz, self.approach_origin_q = origin, np.array(q_origin, dtype=float)
         return ok
 
     def retract(self) -> bool:
-        """Straight back to where the last approach began, at approach speed."""
+        """Back to the joint configuration where the last approach began, at approach speed.
+
+        In joint space, so the arm ends exactly where the approach started
+        whatever the contact and its stopping latency were: the next touch is
+        planned from the same joints on every run (determinism), and the tip
+        path stays within a fraction of a millimetre of the approach line (a
+        few centimetres of motion). Every tip waypoint is checked against the box.
+        """
         if self.approach_origin_xyz is None:
             return self._reject("retract", "no approach to retract from")
-        return self._start("retract", self.approach_origin_xyz[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+        try:
+            traj = self.plan_joint_move(self.approach_origin_q, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            return self._reject("retract", str(exc))
+        return self._start("retract", None, self.cfg.approach_speed_mps, self.cfg.approach_step_m, traj=traj)
+
+    def plan_joint_move(self, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
+        """A joint-space straight line from the planning start to ``q_goal``, tip steps ≤ ``step_m``,
+        rest to rest within the joint limits and ``speed_mps`` at the tip. Raises OutsideWorkspace."""
+        q0 = self._plan_start()[0]
+        q1 = np.asarray(q_goal, dtype=float)
+        span_m = float(np.linalg.norm(self.model.fk(q1)[0] - self.model.fk(q0)[0]))
+        n = max(2, int(np.ceil(span_m / step_m)) + 1)
+        qs = q0 + (q1 - q0) * np.linspace(0.0, 1.0, n)[:, None]
+        qs[-1] = q1  # exactly
+        tip = np.array([self.model.fk(q)[0] for q in qs])
+        self.box.check(tip[1:])
+        limits = MotionLimits(self.limits.lower_rad, self.limits.upper_rad, self.limits.velocity_rad_s,
+                              self.limits.acceleration_rad_s2, speed_mps)
+        return time_parameterize(qs, tip, limits)
 
     def back_off(self, contact_xyz: np.ndarray, clearance_m: float) -> bool:
         """Straight away from a contact the tip is on, at approach speed (world frame), to
@@ -247,7 +284,8 @@ class ArmCommander:
                            joint_states_lost=joint_states_lost)
         return False
 
-    def _start(self, kind: str, path_xyz: np.ndarray, speed_mps: float, step_m: float) -> bool:
+    def _start(self, kind: str, path_xyz: Optional[np.ndarray], speed_mps: float, step_m: float,
+               traj: Optional[TimedTrajectory] = None) -> bool:
         if self._task is not None:
             return self._reject(kind, f"busy with {self._task.kind}")
         if self.estop.engaged:
@@ -255,22 +293,38 @@ class ArmCommander:
         if (self.q is None and not self.cfg.dry_run) or self.watchdog_stale():
             return self._reject(kind, "no recent joint state", joint_states_lost=True)
         try:
-            traj = self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
+            traj = traj if traj is not None else self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
             return self._reject(kind, str(exc))
         msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)
-        msg.header.stamp = self.node.get_clock().now().to_msg()
+        now_ns = self.node.get_clock().now().nanoseconds
+        start_ns = self._start_time_ns(now_ns)
+        msg.header.stamp = time_from_ns(start_ns or now_ns)
         self._pub_planned.publish(msg)
-        task = _Task(kind, traj, self.now_s())
+        task = _Task(kind, traj, (start_ns or now_ns) * 1e-9)
         if self.cfg.dry_run:
             self._dry_q = traj.positions_rad[-1]
             task.result, task.reason = TaskResult.SUCCEEDED, "dry run: planned, not sent"
             self._last = task
             return True
-        msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0  # ros2_control: start now
+        if not start_ns:
+            msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0  # ros2_control: start now
         self._pub_traj.publish(msg)
         self._task = task
         return True
+
+    def _start_time_ns(self, now_ns: int) -> int:
+        """The start time of a trajectory sent now (0: on receipt, the ros2_control default).
+
+        With ``start_lead_s`` the controller starts it at a set time, on a multiple of
+        ``start_grid_s``: the simulated rig then samples every motion at the same offsets from
+        its start and from the same joints, whatever the latency was (determinism).
+        """
+        if self.cfg.start_lead_s <= 0:
+            return 0
+        t_ns = now_ns + int(round(self.cfg.start_lead_s * 1e9))
+        grid_ns = int(round(self.cfg.start_grid_s * 1e9))
+        return -(-t_ns // grid_ns) * grid_ns if grid_ns > 0 else t_ns
 
     def _halt(self, result: TaskResult, reason: str) -> None:
         """Send the stop (empty trajectory: hold position) and end the task."""
@@ -282,6 +336,9 @@ class ArmCommander:
     def _finish(self, result: TaskResult, reason: str) -> None:
         if self._task is None:
             return
+        # Robot time: from the motion's start to its end (or the stop), not the wait before a timed start.
+        t = self._task
+        self.motion_time_s += max(0.0, min(self.now_s(), t.start_s + t.traj.duration_s) - t.start_s)
         self._task.result, self._task.reason = result, reason
         self._last, self._task = self._task, None
         text = f"{self._last.kind}: {result.name.lower()} ({reason})"
@@ -302,6 +359,11 @@ class ArmCommander:
                              throttle_duration_sec=5.0)
             return
         self.watchdog.feed(self._steady_s())
+        self.q_stamp_s = stamp_s(msg.header.stamp)
+        task = self._task
+        if (task is not None and "arrived_s" not in task.extra and self.cfg.start_lead_s > 0
+                and np.max(np.abs(q - task.traj.positions_rad[-1])) <= 1e-9):
+            task.extra["arrived_s"] = self.q_stamp_s  # the first state at the end of the motion
         p, R = self.model.fk(q)
         if self.tip_xyz is not None:
             self.odometer_m += float(np.linalg.norm(p - self.tip_xyz))
@@ -318,6 +380,8 @@ class ArmCommander:
             self.counters["invalid_contacts"] += 1
             self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
             return
+        if np.any(points["label"] == fields.LABEL_CONTACT):
+            self.contacts_received += 1
         task = self._task
         if task is None or task.kind in ("retract", "back_off"):  # moving off the surface
             return
@@ -331,6 +395,16 @@ class ArmCommander:
             self._halt(TaskResult.CONTACT, f"contact at {where}")
         else:  # a free-space path must not touch anything: the map was wrong, stop
             self._halt(TaskResult.ABORTED, f"unexpected contact at {where}")
+
+    def _on_sensor_decided(self, msg: DiagnosticStatus) -> None:
+        values = {kv.key: kv.value for kv in msg.values}
+        try:
+            decided_s, sent = int(values["decided_through_ns"]) * 1e-9, int(values["contacts_sent"])
+        except (KeyError, ValueError):
+            self.counters["invalid_sensor_progress"] = self.counters.get("invalid_sensor_progress", 0) + 1
+            return
+        if decided_s >= self.sensor_decided_s:
+            self.sensor_decided_s, self.sensor_contacts_sent = decided_s, sent
 
     def _on_estop(self, msg: Bool) -> None:
         if self.estop.set(msg.data):
@@ -359,9 +433,25 @@ class ArmCommander:
         elapsed = self.now_s() - task.start_s
         if elapsed < task.traj.duration_s:
             return
-        if task.kind == "approach" and elapsed < task.traj.duration_s + self.cfg.contact_latency_s:
-            return  # a contact sensed near the end may still be on its way from the driver
         err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
+        end_s = task.start_s + task.traj.duration_s
+        if self.cfg.start_lead_s > 0:
+            # Timed starts (simulation): the motion is over when the arm is exactly at its end (the
+            # controller may have started it late); the next one is then planned from those joints.
+            if err > 1e-9:
+                if elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+                    self._halt(TaskResult.ABORTED, f"goal not reached: joint error {err:.3f} rad")
+                return
+            end_s = task.extra.get("arrived_s", self.q_stamp_s)
+        if task.kind == "approach" and np.isfinite(self.sensor_decided_s):
+            # Free space only once the driver has judged every frame up to the end of the approach
+            # (its contact, if any, is then already here); a driver that falls silent aborts it.
+            if self.sensor_decided_s < end_s or self.contacts_received < self.sensor_contacts_sent:
+                if elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+                    self._halt(TaskResult.ABORTED, "the sensor driver did not confirm the end of the approach")
+                return
+        elif task.kind == "approach" and elapsed < task.traj.duration_s + self.cfg.contact_latency_s:
+            return  # no word from the driver (a rig without it): wait a fixed latency for a late contact
         if err <= self.cfg.goal_tolerance_rad:
             self._finish(TaskResult.SUCCEEDED, f"{task.traj.length_m:.3f} m in {elapsed:.2f} s")
         elif elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:

@@ -77,6 +77,19 @@ class SensorDriver:
         self.clock = DeviceClock(config.clock_window_s)
         self.stats = DriverStats()
         self._pending: list = []  # (stamp_s, ContactEstimate) waiting for a pose
+        self.newest_frame_s = -np.inf  # stamp of the newest frame run through the detector
+
+    @property
+    def decided_through_s(self) -> float:
+        """Every frame up to this stamp has been judged and its contact, if any, returned.
+
+        A contact waiting for its pose holds it back to just before that frame.
+        The arm commander ends an approach as free space only once this has
+        passed the end of the approach: a fixed latency would decide by timing.
+        """
+        if self._pending:
+            return min(s for s, _ in self._pending) - 1e-9
+        return self.newest_frame_s
 
     def device_reset(self) -> None:
         """After a reconnect: drop partial bytes and the sequence.
@@ -128,16 +141,20 @@ class SensorDriver:
                 self.stats.wrong_size_frames += 1
                 continue
             self.stats.frames += 1
+            self.newest_frame_s = max(self.newest_frame_s, stamp_s)
             out.frames.append((stamp_s, frame.values))
             est = self.detector.update(frame.values)
             if est is None:
                 continue
-            pose = self.poses.at(stamp_s)
             newest = self.poses.newest_s
+            if newest is not None and stamp_s > newest:
+                # Its pose is on the way: wait for the pose that covers its time rather than take
+                # the newest one (which pose had arrived would depend on timing, not on the touch).
+                self._pending.append((stamp_s, est))
+                continue
+            pose = self.poses.at(stamp_s)
             if pose is not None:
                 out.contacts.append(self._world(stamp_s, est, pose))
-            elif newest is not None and stamp_s > newest:
-                self._pending.append((stamp_s, est))  # its pose is on the way
             else:
                 self._refuse()
         return out

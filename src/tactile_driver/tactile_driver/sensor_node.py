@@ -25,7 +25,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_common.rotations import xyzw
-from tactile_common.stamps import stamp_s, time_from_s
+from tactile_common.stamps import ns_from_s, stamp_s, time_from_s
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
 from tactile_driver.serial_link import SerialLink
@@ -83,8 +83,11 @@ class TactileSensorNode(Node):
         self._last_counts: dict = {}
         self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
         self._pub_taxels = self.create_publisher(Float32MultiArray, topics.TAXELS, qos.SENSOR)
+        self._pub_decided = self.create_publisher(DiagnosticStatus, topics.SENSOR_DECIDED, qos.SENSOR)
+        self._decided_sent_s = -np.inf
+        self._contacts_sent = 0
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
-        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)
+        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.STATE)
         steady = Clock(clock_type=ClockType.STEADY_TIME)  # serial I/O runs in wall time
         self.create_timer(p.poll_period_s, self._poll, clock=steady)
         self.create_timer(p.diagnostics_period_s, self._publish_diagnostics, clock=steady)
@@ -103,6 +106,17 @@ class TactileSensorNode(Node):
             return
         for c in completed:
             self._publish_contact(c)
+        self._publish_decided()
+
+    def _publish_decided(self) -> None:
+        """After the contacts: how far the frames have been judged (the commander waits for it)."""
+        t = self.driver.decided_through_s
+        if t > self._decided_sent_s and np.isfinite(t):
+            self._decided_sent_s = t
+            self._pub_decided.publish(DiagnosticStatus(
+                name="tactile_sensor", message="decided", hardware_id="tactile_sensor",
+                values=[KeyValue(key="decided_through_ns", value=str(ns_from_s(t))),
+                        KeyValue(key="contacts_sent", value=str(self._contacts_sent))]))
 
     def _poll(self) -> None:
         data = self.link.poll(time.monotonic())
@@ -122,6 +136,7 @@ class TactileSensorNode(Node):
         self._rate_frames += len(out.frames)
         for c in out.contacts:
             self._publish_contact(c)
+        self._publish_decided()
 
     def _publish_contact(self, c: WorldContact) -> None:
         point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
@@ -129,6 +144,7 @@ class TactileSensorNode(Node):
         point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
         point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
         self._pub_contacts.publish(to_pointcloud2(point, self.world_frame, time_from_s(c.stamp_s)))
+        self._contacts_sent += 1
         self.get_logger().info(
             f"contact at {np.round(c.point_xyz, 4).tolist()} normal {np.round(c.normal_xyz, 3).tolist()} "
             f"force {c.force_n:.3f} N")

@@ -50,7 +50,7 @@ class TouchExecutor:
                  publish_free_space: Callable[[np.ndarray, int], None],
                  publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01) -> None:
         if approach_length_m <= 0:
-            raise ValueError("approach length (standoff + tip radius + max depth) must be positive")
+            raise ValueError("approach length (standoff + max depth) must be positive")
         self.arm = arm
         self.approach_length_m = float(approach_length_m)
         self.dwell_s = float(dwell_s)
@@ -110,6 +110,7 @@ class TouchExecutor:
             else:
                 return self._done(OUTCOME_ABORTED, f"approach: {task.reason}")
             self._dwell_until_s = arm.now_s() + (0.0 if arm.cfg.dry_run else self.dwell_s)
+            self._dwelt_s = 0.0 if arm.cfg.dry_run else self.dwell_s
             self._state = "dwell"
         elif self._state == "dwell":
             if arm.now_s() < self._dwell_until_s:
@@ -129,9 +130,10 @@ class TouchExecutor:
             self._done(self._outcome, "dry_run: planned, not executed" if arm.cfg.dry_run else self._reason)
 
     def _begin(self, req: TouchRequest) -> None:
-        self._req, self._t0_s, self._odo0_m = req, self.arm.now_s(), self.arm.odometer_m
+        self._req, self._t0_s, self._odo0_m = req, self.arm.motion_time_s, self.arm.odometer_m
         self._obs_stamp_ns, self._outcome, self._reason, self._travel_planned_m = None, "", "", 0.0
         self._end_xyz = None
+        self._dwelt_s = 0.0  # robot time of the dwell (not a motion)
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
         try:  # plan the whole touch before moving
             to_goal = self.arm.plan(path)
@@ -159,6 +161,7 @@ class TouchExecutor:
         travel = self._travel_planned_m if self.arm.cfg.dry_run else self.arm.odometer_m - self._odo0_m
         end = None if outcome == OUTCOME_ABORTED or self._end_xyz is None else tuple(map(float, self._end_xyz))
         report = TouchReport(req.goal_stamp_ns, outcome, reason, self._obs_stamp_ns,
-                             0.0 if outcome == OUTCOME_UNREACHABLE else travel, self.arm.now_s() - self._t0_s, end)
+                             0.0 if outcome == OUTCOME_UNREACHABLE else travel,
+                             self.arm.motion_time_s - self._t0_s + self._dwelt_s, end)
         self._req, self._state = None, "idle"
         self._publish_done(report)

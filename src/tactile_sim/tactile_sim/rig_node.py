@@ -10,6 +10,9 @@ object: the commander's guarded approach must stop it.
 
 from __future__ import annotations
 
+import time
+import zlib
+
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -41,6 +44,8 @@ PARAMS = {
     "sensor_layout": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "sensor_frame_rate_hz": (200.0, "sensor frame rate (simulated time)", {"gt": 0.0}),
     "sensor_seed": (0, "seed of the sensor noise, baselines and faults", {"ge": 0}),
+    "sensor_max_hold_s": (2.0, "lock-step: the clock waits for a driver that is behind reading frames, at most this "
+                          "long in a row (wall clock); then frames are dropped", {"ge": 0.0}),
     **OBJECT_PARAMETERS,
     **DEVICE_PARAMETERS,
 }
@@ -61,8 +66,12 @@ class SimRig(Node):
         self.dt_s = 1.0 / p.rate_hz
         self.t_s = 0.0
         self.device = self._make_device(p) if p.sensor_enabled else None
+        self.sensor_max_hold_s = float(p.sensor_max_hold_s)
+        self._held_since = None
+        self.held_ticks = 0  # ticks the clock waited for the driver
+        self.late_starts = 0  # trajectories received after their start time
         self._pub_clock = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
-        self._pub_js = self.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+        self._pub_js = self.create_publisher(JointState, topics.JOINT_STATES, qos.STATE)
         self.create_subscription(JointTrajectory, p.trajectory_topic, self._on_trajectory, qos.COMMANDS)
         # The rig is the clock source: it ticks on the steady clock, whatever use_sim_time says.
         self.create_timer(self.dt_s / p.real_time_factor, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -104,12 +113,26 @@ class SimRig(Node):
             has_vel = len(msg.points) > 0 and all(len(pt.velocities) for pt in msg.points)
             velocities = np.array([list(pt.velocities) for pt in msg.points], dtype=float) if has_vel else None
             self.controller.command(self.t_s, msg.joint_names, times, positions, velocities, start_s)
+            if 0 < start_s < self.t_s - 1e-9 and len(times):
+                self.late_starts += 1
+                self.get_logger().warning(f"trajectory arrived {self.t_s - start_s:.3f} s after its start time "
+                                          f"({self.late_starts} so far): started late (raise the commander's "
+                                          f"start_lead_s)", throttle_duration_sec=5.0)
+            if self.device is not None and len(times):  # the noise of this motion's frames: keyed on it
+                # Keyed on where the motion starts and ends, rounded to a µrad: the same motion gets the
+                # same key on every run, even when its joints differ in the last bits (a contact placed
+                # 1e-15 m apart moves the next plan by as much).
+                ends = np.round(np.vstack([positions[0], positions[-1]]) * 1e6).astype(np.int64)
+                key = zlib.crc32(ends.tobytes())
+                self.device.begin_motion(key, self.t_s if start_s <= self.t_s else start_s)
         except (TrajectoryRejected, ValueError) as exc:
             self.get_logger().error(f"trajectory rejected ({self.controller.rejected} so far): {exc}")
 
     def _tick(self) -> None:
         if not self.context.ok():  # SIGINT arrived during this spin: publishing would raise
             return
+        if self._sensor_behind():
+            return  # lock-step: simulated time waits for the driver (no frame is dropped for load)
         self.t_s += self.dt_s
         stamp = time_from_s(self.t_s)
         self._pub_clock.publish(ClockMsg(clock=stamp))
@@ -120,6 +143,21 @@ class SimRig(Node):
         if self.device is not None:
             self.device.set_pose(*self.model.fk(q))
             self.device.step(self.t_s)
+
+    def _sensor_behind(self) -> bool:
+        """The driver has not read the frames sent so far: hold the clock, for at most
+        ``sensor_max_hold_s`` (wall) in a row, after which frames are dropped (counted by the
+        device) rather than stopping the simulation for a driver that is gone."""
+        if self.device is None or self.device.backlog_bytes == 0:
+            self._held_since = None
+            return False
+        now = time.monotonic()
+        if self._held_since is None:
+            self._held_since = now
+        if now - self._held_since > self.sensor_max_hold_s:
+            return False
+        self.held_ticks += 1
+        return True
 
     def close(self) -> None:
         if self.device is not None:

@@ -77,6 +77,9 @@ class SimulatedSensorDevice:
 
     #: Frames older than this behind ``now_s`` are skipped, not written in a burst.
     MAX_BACKLOG_S = 0.5
+    #: Unloaded frames repeat this many noise vectors (the driver's calibration_frames, 40 by
+    #: default, must be a multiple of it for a timing-independent baseline).
+    IDLE_NOISE_PERIOD = 8
     #: Transmit buffer of the device: bytes the pty did not take yet are sent later.
     TX_BUFFER_BYTES = 8192
 
@@ -99,7 +102,9 @@ class SimulatedSensorDevice:
         self.faults = faults.validate(layout.n_taxels)
         self.model = SensorModel(layout, model_config, seed=seed)
         self.stats = DeviceStats()
-        self._rng = np.random.default_rng(seed + 1)
+        self._rng = np.random.default_rng(seed + 1)  # faults only
+        self.seed = int(seed)
+        self._motion: Optional[tuple[int, float]] = None  # (key, start time) of the commanded motion
         self._out = bytearray()  # transmit buffer
         self._master: Optional[int] = None
         self._slave: Optional[int] = None
@@ -159,6 +164,40 @@ class SimulatedSensorDevice:
             raise ValueError("fingertip pose must be finite")
         self._position, self._rotation = p, R
 
+    @property
+    def backlog_bytes(self) -> int:
+        """Bytes the pty did not take yet (after trying to write them now): the reader (driver)
+        is behind by at least a kernel buffer."""
+        if self.is_open and self._out:
+            self._flush()
+        return len(self._out) if self.is_open else 0
+
+    def begin_motion(self, key: int, start_s: float) -> None:
+        """A commanded motion starts at simulated time ``start_s`` (the rig calls this).
+
+        The noise of every frame that carries a contact load is drawn from a
+        counter-based stream keyed on (seed, ``key``, frame index within the
+        motion), so a touch senses the same frames whatever the wall-clock
+        timing between motions was. ``key`` identifies the motion (the rig
+        uses a checksum of the trajectory: the same command gives the same key).
+        """
+        self._motion = (int(key), float(start_s))
+
+    def noise_rng(self, k: int, t_s: float, loaded: bool) -> np.random.Generator:
+        """The noise stream of frame ``k`` at ``t_s`` (see :meth:`begin_motion`).
+
+        Frames without a contact load repeat a pattern of ``IDLE_NOISE_PERIOD``
+        noise vectors: every run of the driver's calibration frames (a multiple
+        of the period) then has the same mean and spread, wherever the driver
+        started reading, and unloaded frames never trip a contact. Loaded
+        frames use the motion's keyed stream.
+        """
+        if loaded and self._motion is not None:
+            key, start_s = self._motion
+            j = int(round((t_s - start_s) * self.frame_rate_hz))
+            return np.random.default_rng([self.seed, 1, key, max(j, 0)])
+        return np.random.default_rng([self.seed, 2, k % self.IDLE_NOISE_PERIOD])
+
     def step(self, now_s: float) -> int:
         """Write every frame due up to simulated time ``now_s``; the number written."""
         if self._t0 is None:
@@ -193,7 +232,8 @@ class SimulatedSensorDevice:
         if len(self._out) > self.TX_BUFFER_BYTES:  # the reader stalls: the device drops whole frames
             self.stats.frames_lost += 1
             return 0
-        values = self.model.add_noise(clean, self._rng)
+        loaded = not np.array_equal(clean, self.model.baseline_counts)
+        values = self.model.add_noise(clean, self.noise_rng(k, t_s, loaded))
         if f.stuck_taxel >= 0 and t_s - self._t0 >= f.stuck_after_s:
             values[f.stuck_taxel] = f.stuck_value
         if f.drop_prob and self._rng.random() < f.drop_prob:
