@@ -25,7 +25,7 @@ def packed_solve(ap: np.ndarray, n: int, B: np.ndarray, transpose: bool = False)
     """L^-1 B (or L^-T B) for the row-packed lower-triangular L (n, n) and B (n,) or (n, k)."""
     if B.ndim == 1:
         return dtpsv(n, ap, B, lower=0, trans=0 if transpose else 1)
-    if B.shape[1] > 3:  # many right-hand sides: one level-3 solve on the unpacked factor
+    if B.shape[1] > 16:  # many right-hand sides: one level-3 solve on the unpacked factor
         L = np.zeros((n, n))
         L[np.tril_indices(n)] = ap
         return dtrsm(1.0, L, np.asarray(B, float), lower=1, trans_a=int(transpose))
