@@ -212,7 +212,7 @@ def test_local_state_grows_linearly_without_lattice_sized_copies():
 @pytest.mark.parametrize("params, match", [
     ({"method": "fast"}, "method must be one of"),
     ({"local.blend": 1.5}, "local.blend must be in"),
-    ({"local.context_m": -0.01}, "local.context_m must be > 0"),
+    ({"local.context_m_2d": -0.01}, "local.context_m_2d must be > 0"),
 ])
 def test_bad_local_parameters_are_refused(params, match):
     with pytest.raises(ValueError, match=match):

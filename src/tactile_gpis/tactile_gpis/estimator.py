@@ -67,11 +67,14 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
                "local.auto_min_contacts observations, then local)", {"choices": METHODS}),
     "local.auto_min_contacts": (300, "'auto': observations from which the local path takes over", {"ge": 1}),
-    "local.leaf_capacity": (32, "local: observations in an octree cell before it splits", {"ge": 1}),
-    "local.context_m": (0.012, "local: an expert sees the data at least this far beyond its octree cell (m)",
-                        {"gt": 0.0}),
-    "local.context_cells": (0.5, "local: ... and at least this many of its cell sizes (sparse data: big cells)",
-                            {"ge": 0.0}),
+    "local.leaf_capacity_2d": (96, "local, 2D: observations in a quadtree cell before it splits", {"ge": 1}),
+    "local.leaf_capacity_3d": (32, "local, 3D: observations in an octree cell before it splits", {"ge": 1}),
+    "local.context_m_2d": (0.02, "local, 2D: an expert sees the data at least this far beyond its cell (m)",
+                           {"gt": 0.0}),
+    "local.context_m_3d": (0.012, "local, 3D: an expert sees the data at least this far beyond its cell (m)",
+                           {"gt": 0.0}),
+    "local.context_spacings": (1.6, "local: ... and this many spacings of its own observations (sparse data), "
+                               "up to 2.5 context_m", {"ge": 0.0}),
     "local.blend": (0.25, "local: half-width of the experts' blending ramp, a fraction of min(cell size, "
                     "local.context_m)", {"gt": 0.0, "lt": 1.0}),
     "local.anchor_spacing_m": (0.015, "local: an observation this far from every anchor becomes one (m)",
@@ -149,15 +152,16 @@ class ShapeEstimator:
             raise ValueError(f"method must be one of {METHODS}, got '{p['method']}'")
         self.auto_min_contacts = int(p["local.auto_min_contacts"])
         self._local_args = dict(
-            leaf_capacity=int(p["local.leaf_capacity"]), context_m=float(p["local.context_m"]),
-            context_cells=float(p["local.context_cells"]),
+            leaf_capacity=int(p[f"local.leaf_capacity_{self.dim}d"]),
+            context_m=float(p[f"local.context_m_{self.dim}d"]),
+            context_spacings=float(p["local.context_spacings"]),
             blend=float(p["local.blend"]), anchor_spacing_m=float(p["local.anchor_spacing_m"]),
             max_anchors=int(p["local.max_anchors"]), band_m=float(p["local.band_m"]),
             coarse_stride=int(p["local.coarse_stride"]))
         if not 0 < self._local_args["blend"] < 1:
             raise ValueError(f"local.blend must be in (0, 1), got {p['local.blend']}")
         if not self._local_args["context_m"] > 0:
-            raise ValueError(f"local.context_m must be > 0, got {p['local.context_m']}")
+            raise ValueError(f"local.context_m_{self.dim}d must be > 0, got {self._local_args['context_m']}")
         self.gp = GPIS(self.kernel, self.dim, self._prior(p), jitter=_nonneg(p, "jitter"))
         self.local: Optional[LocalGPIS] = None
         self.reset()

@@ -118,9 +118,10 @@ class LocalGPIS:
         bounds_m: (2, dim) box holding every observation (the tree's root cell).
         lattice_axes: per axis the lattice node coordinates (the map).
         leaf_capacity: observations in a leaf before it splits.
-        context_m, context_cells: data box margin: an expert sees the data up to
-            max(context_m, context_cells * its smallest cell size) beyond its cell (cells
-            shrink where data are dense, and so does the context needed; measured).
+        context_m, context_spacings: data box margin: an expert sees the data
+            c = max(context_m, context_spacings * s) beyond its cell, s the spacing of
+            its own observations (cell size / own^(1/(d-1)), surface data), at most
+            2.5 context_m: sparse data need a wider context than dense data (measured).
         blend: weight ramp half-width, as a fraction of min(cell size, context_m) (< 1).
         min_leaf_m: leaves never split below this size.
         anchor_spacing_m, max_anchors, anchor_batch, anchor_delay: the anchor subset.
@@ -130,7 +131,7 @@ class LocalGPIS:
 
     def __init__(self, kernel: Kernel, dim: int, mean_fn: Optional[MeanFn], jitter: float,
                  bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 32,
-                 context_m: float = 0.012, context_cells: float = 0.5, blend: float = 0.25, min_leaf_m: float = 0.004,
+                 context_m: float = 0.012, context_spacings: float = 1.6, blend: float = 0.25, min_leaf_m: float = 0.004,
                  anchor_spacing_m: float = 0.015, max_anchors: int = 256, anchor_batch: float = 0.25,
                  anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3) -> None:
         if not 0 < blend < 1:
@@ -145,9 +146,9 @@ class LocalGPIS:
         self.axes = [np.asarray(a, float) for a in lattice_axes]
         self.shape = tuple(len(a) for a in self.axes)
         self.leaf_capacity, self.context_m, self.blend = int(leaf_capacity), float(context_m), float(blend)
-        if not context_cells >= 0:
-            raise ValueError(f"local context_cells {context_cells} must be >= 0")
-        self.context_cells = float(context_cells)
+        if not context_spacings >= 0:
+            raise ValueError(f"local context_spacings {context_spacings} must be >= 0")
+        self.context_spacings = float(context_spacings)
         self.min_leaf_m = float(min_leaf_m)
         self.anchor_spacing_m, self.max_anchors = float(anchor_spacing_m), int(max_anchors)
         self.anchor_batch, self.anchor_delay = float(anchor_batch), int(anchor_delay)
@@ -189,8 +190,9 @@ class LocalGPIS:
         self._refresh_coarse()
         self._add_band_nodes(np.flatnonzero(np.abs(self._mu_a_lat) < self.band_m))
 
-    def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int) -> _Leaf:
-        c = max(self.context_m, self.context_cells * float((hi - lo).min()))
+    def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int, n_own: int = 0) -> _Leaf:
+        spacing = float((hi - lo).min()) / max(n_own, 1) ** (1.0 / (self.dim - 1))
+        c = min(max(self.context_m, self.context_spacings * spacing), 2.5 * self.context_m)
         return _Leaf(lo, hi, depth, self.kernel, self.dim, c, self.blend, self.jitter)
 
     @property
@@ -404,24 +406,26 @@ class LocalGPIS:
     def _split(self, parent: _Leaf) -> None:
         """Replace a leaf by its 2^d children (each activated only if the band needs it)."""
         mid = parent.centre
-        kids = []
+        P = self._obs_pts
+        boxes = []
         for code in range(2 ** self.dim):
             bits = np.array([(code >> k) & 1 for k in range(self.dim)], bool)
-            kids.append(self._new_leaf(np.where(bits, mid, parent.lo), np.where(bits, parent.hi, mid),
-                                       parent.depth + 1))
-        P = self._obs_pts
+            boxes.append((np.where(bits, mid, parent.lo), np.where(bits, parent.hi, mid)))
+        owns: list[list[int]] = [[] for _ in boxes]
+        for j in parent.own:
+            for k, (lo, hi) in enumerate(boxes):
+                if np.all((P[j] >= lo) & ((P[j] < hi) | ((P[j] == hi) & (hi >= self.bounds_m[1])))):
+                    owns[k].append(j)
+                    break
+            else:
+                owns[0].append(j)
+        kids = [self._new_leaf(lo, hi, parent.depth + 1, len(own)) for (lo, hi), own in zip(boxes, owns)]
         starts, lens = np.asarray(self._obs_start), np.asarray(self._obs_len)
-        for kid in kids:
+        for kid, own in zip(kids, owns):
+            kid.own = own
             inbox = np.flatnonzero(np.all((P >= kid.dlo) & (P <= kid.dhi), axis=1))
             kid.rows = (np.concatenate([np.arange(starts[j], starts[j] + lens[j]) for j in inbox])
                         if len(inbox) else np.zeros(0, np.int64))
-        for j in parent.own:
-            for kid in kids:
-                if np.all((P[j] >= kid.lo) & ((P[j] < kid.hi) | ((P[j] == kid.hi) & (kid.hi >= self.bounds_m[1])))):
-                    kid.own.append(j)
-                    break
-            else:
-                kids[0].own.append(j)
         if len(parent.nodes):  # swap the parent's band contribution for the children's
             self._num[parent.nodes] -= parent.w * parent.contrib
             self._wsum[parent.nodes] -= parent.w
