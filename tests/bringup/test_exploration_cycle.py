@@ -13,7 +13,7 @@ class FakeRun:
     def __init__(self, touches=3):
         self.budget, self.touches, self.travel, self.written = touches, [], [], None
 
-    def add_touch(self, goal, observation, travel_m, time_s, decision_ms):
+    def add_touch(self, goal, observation, travel_m, time_s, decision_ms, path_xyz=None):
         self.touches.append((goal, observation, travel_m, decision_ms))
         return {"index": len(self.touches) - 1}
 

@@ -25,6 +25,7 @@ pytestmark = pytest.mark.graph
 
 CENTRE, RADIUS_M, TIP_RADIUS_M, Z_M = np.array([0.50, 0.0]), 0.04, 0.010, 0.06
 SPEED_MPS = 0.02
+PERIOD_S = 0.01  # pose period
 DIRECTION = np.array([math.cos(2.5), math.sin(2.5)])  # the approach touches the circle's lower right
 
 
@@ -35,24 +36,27 @@ class PoseScript:
         self.graph = graph
         self.start = np.r_[CENTRE - DIRECTION * (RADIUS_M + TIP_RADIUS_M + 0.004), Z_M]
         self.dir = np.r_[DIRECTION, 0.0]
-        self.t_go = None
+        self.moving, self.travel_m = False, 0.0
         self.extra: list = []  # functions now_s -> PoseStamped, each published once
         self.ticks = 0
         self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
-        graph.node.create_timer(0.01, self.publish)
+        graph.node.create_timer(PERIOD_S, self.publish)
 
     def wait_for_subscribers(self, contacts):
         self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2 and contacts.publishers, 20,
                             "pose subscribers and the contact writer")
 
     def go(self):
-        self.t_go = self.graph.node.get_clock().now().nanoseconds * 1e-9
+        self.moving = True
 
     def publish(self):
+        # The tip advances one step per tick, not with the wall clock: if this process is starved, the tip
+        # pauses instead of jumping (a jump between two poses is a motion the device and driver cannot agree on).
         now = self.graph.node.get_clock().now()
         t = now.nanoseconds * 1e-9
-        travel = 0.0 if self.t_go is None else min(SPEED_MPS * (t - self.t_go), 0.03)
-        self.pub.publish(pose_msg(self.start + travel * self.dir, topics.WORLD_FRAME, now.to_msg()))
+        if self.moving:
+            self.travel_m = min(self.travel_m + SPEED_MPS * PERIOD_S, 0.03)
+        self.pub.publish(pose_msg(self.start + self.travel_m * self.dir, topics.WORLD_FRAME, now.to_msg()))
         self.ticks += 1
         if self.extra and self.ticks % 10 == 0:  # spaced: the reader's queue (SENSOR, depth 10) never overflows
             self.pub.publish(self.extra.pop(0)(t))
@@ -65,12 +69,38 @@ def _start(graph, link, *faults):
                            "-p", "reconnect_min_s:=0.05", "-p", "diagnostics_period_s:=0.25"])
 
 
-def _check_contact(msg):
+STALE = ("stale_frames", "refused_no_pose")  # frames the driver could not use in time (it was starved)
+
+
+def _stale(diags) -> int:
+    return sum(int(diag_values(diags[-1])[k]) for k in STALE) if diags else 0
+
+
+def _approach_and_check(graph, script, contacts, diags):
+    """Approach; one contact on the touched side of the circle.
+
+    On the surface within 2 mm, unless the driver had to drop frames during the approach (a starved
+    process on a loaded machine: the simulated finger goes on into the object until a frame is used);
+    then the contact may lie inside the circle, never outside it (that would be a false contact).
+    """
+    stale_before = _stale(diags)
+    script.go()
+    graph.wait_for(lambda: contacts, 15, "a contact")
+    n = len(diags)
+    graph.wait_for(lambda: len(diags) > n, 5, "diagnostics after the contact")
+    late = _stale(diags) > stale_before
+    _check_contact(contacts[0], late, diag_values(diags[-1]))
+
+
+def _check_contact(msg, late=False, diag=None):
     pts = from_pointcloud2(msg)
     assert len(pts) == 1 and pts["label"][0] == fields.LABEL_CONTACT and msg.header.frame_id == topics.WORLD_FRAME
     p, n = fields.xyz(pts)[0], fields.normals(pts)[0]
     radial = (p[:2] - CENTRE) / np.linalg.norm(p[:2] - CENTRE)
-    assert abs(np.linalg.norm(p[:2] - CENTRE) - RADIUS_M) < 0.002, f"contact {p} is off the circle"
+    off_m = np.linalg.norm(p[:2] - CENTRE) - RADIUS_M
+    if late:
+        print(f"frames dropped during the approach (starved driver): contact {off_m * 1000:.1f} mm off", diag)
+    assert off_m < 0.002 and (late or off_m > -0.002), f"contact {p} is off the circle by {off_m * 1000:.1f} mm; {diag}"
     assert abs(p[2] - Z_M) < 0.002
     assert math.degrees(math.acos(np.clip(n[:2] @ radial, -1, 1))) < 10.0, f"normal {n} vs radial {radial}"
     assert radial @ DIRECTION < -0.9, "the touched side faces the approach"
@@ -109,9 +139,7 @@ def test_sensor_fault_is_reported_gives_no_false_contact_and_the_driver_still_se
     if fault == "disconnect":
         assert any(diag_values(m)["connected"] == "false" for m in diags) or int(v["reconnects"]) >= 1
     script.wait_for_subscribers(contacts)
-    script.go()
-    g.wait_for(lambda: contacts, 15, "a contact after the fault")
-    _check_contact(contacts[0])
+    _approach_and_check(g, script, contacts, diags)
     assert g.procs["driver"].alive() and g.procs["device"].alive()
 
 
@@ -135,6 +163,4 @@ def test_invalid_fingertip_poses_are_counted_and_contacts_still_use_the_valid_on
                "the invalid poses counted")
     assert int(diag_values(diags[-1])["invalid_poses"]) == n_bad
     assert not contacts
-    script.go()
-    g.wait_for(lambda: contacts, 15, "a contact")
-    _check_contact(contacts[0])
+    _approach_and_check(g, script, contacts, diags)

@@ -146,3 +146,15 @@ def test_unloaded_noise_repeats_so_any_calibration_window_gives_the_same_baselin
         np.testing.assert_allclose(w.mean(axis=0), windows[0].mean(axis=0), atol=1e-9)
         np.testing.assert_allclose(w.std(axis=0), windows[0].std(axis=0), atol=1e-9)
     assert (np.diff(frames[:n], axis=0) != 0).mean() > 0.5  # values keep changing: never taken for stuck
+
+
+def test_a_motion_with_a_timed_start_takes_over_only_at_its_start(tmp_path):
+    """Frames before a queued motion's start keep the running motion's keys (never one key repeated)."""
+    dev = SimulatedSensorDevice(BALL, LAYOUT, tmp_path / "e", seed=5)
+    dev.begin_motion(1, start_s=1.0)
+    dev.begin_motion(2, start_s=2.0)  # sent at 1.5 s, starts at 2.0 s
+    before = [dev.noise_rng(0, 1.5 + j * 0.005, loaded=True).normal(size=4) for j in range(3)]
+    assert not np.array_equal(before[0], before[1])  # still motion 1, frames 100, 101, ...
+    np.testing.assert_array_equal(before[0], np.random.default_rng([5, 1, 1, 100]).normal(size=4))
+    np.testing.assert_array_equal(dev.noise_rng(0, 2.0, loaded=True).normal(size=4),
+                                  np.random.default_rng([5, 1, 2, 0]).normal(size=4))

@@ -92,6 +92,7 @@ class ExplorationCycle:
         self._t_phase = clock_s()
         self._t_sent = self._t_phase
         self._goals: dict[int, Any] = {}
+        self._paths: dict[int, np.ndarray] = {}
         self._decision_ms: dict[int, float] = {}
         self._observations: dict[int, np.ndarray] = {}
 
@@ -122,6 +123,10 @@ class ExplorationCycle:
 
     def on_goal(self, stamp_ns: int, goal: Any) -> None:
         self._goals[int(stamp_ns)] = goal
+
+    def on_path(self, stamp_ns: int, path_xyz: np.ndarray) -> None:
+        """The planned free-space path of a goal (world, (K, 3)): drawn in the figure."""
+        self._paths[int(stamp_ns)] = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
 
     def on_observation(self, stamp_ns: int, point: np.ndarray) -> None:
         self._observations[int(stamp_ns)] = point
@@ -181,7 +186,8 @@ class ExplorationCycle:
         record = self.run.add_touch(goal=self._goals.pop(report.goal_stamp_ns, None),
                                     observation=self._observations.pop(obs_ns), travel_m=report.travel_m,
                                     time_s=report.duration_s,
-                                    decision_ms=self._decision_ms.pop(report.goal_stamp_ns, float("nan")))
+                                    decision_ms=self._decision_ms.pop(report.goal_stamp_ns, float("nan")),
+                                    path_xyz=self._paths.pop(report.goal_stamp_ns, None))
         self.log.info(self.run.progress_line(record))
         self.last_obs_stamp_ns = obs_ns
         reason = self.run.stop_reason()

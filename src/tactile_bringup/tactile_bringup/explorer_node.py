@@ -1,7 +1,7 @@
 """Node ``explorer``: sequences touches over topics, measures progress, writes the report.
 
 In:  /arm/fingertip_pose (waits for the tip at the start position),
-     /planner/goal (the target of each decision), /planner/status (the answer
+     /planner/goal and /planner/path (the target and path of each decision), /planner/status (the answer
      to each request), /tactile/contacts (the touch's observation),
      /arm/touch_done (end of a touch).
 Out: /planner/request (DiagnosticStatus: request id + map stamp to wait for).
@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Path as PathMsg
 from rclpy.node import Node
 from sensor_msgs.msg import PointCloud2
 
@@ -35,6 +36,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_ns
+from tactile_driver.arm_msgs import path_xyz
 
 from .experiment import Experiment
 from .exploration_cycle import CycleConfig, ExplorationCycle
@@ -75,6 +77,7 @@ class ExplorerNode(Node):
                                       lambda: self.get_clock().now().nanoseconds, self.get_logger())
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self.on_tip, qos.SENSOR)
         self.create_subscription(PoseStamped, topics.GOAL, self.on_goal, qos.EVENTS)
+        self.create_subscription(PathMsg, topics.PATH, self.on_path, qos.EVENTS)
         self.create_subscription(DiagnosticStatus, PLANNER_STATUS, self.on_planner_status, qos.EVENTS)
         self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.OBSERVATIONS)
         self.create_subscription(DiagnosticStatus, topics.TOUCH_DONE, self.on_touch_done, qos.EVENTS)
@@ -102,6 +105,9 @@ class ExplorerNode(Node):
 
     def on_goal(self, msg: PoseStamped) -> None:
         self.cycle.on_goal(stamp_ns(msg.header.stamp), msg)
+
+    def on_path(self, msg: PathMsg) -> None:
+        self.cycle.on_path(stamp_ns(msg.header.stamp), path_xyz(msg))
 
     def on_planner_status(self, msg: DiagnosticStatus) -> None:
         self._event(self.cycle.on_answer, answer_from_msg, msg, "planner status")

@@ -112,10 +112,10 @@ class ExplorationLoop:
             t1 = time.perf_counter()
             point = result.point_xyz if result.contact else result.tip_xyz_at_stop
             observe(self.estimator, point, result.normal_xyz, result.contact)
-            stream = None
+            stream, used = None, None
             if slide is not None:  # the slide's thinned contact stream, in the order sensed, with checkpoints
-                stream = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,
-                                        time_s - st.time_s)
+                stream, used = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,
+                                              time_s - st.time_s)
                 point, normal = (slide.points_xyz[-1], slide.normals_xyz[-1]) if slide.n_contacts else \
                     (point, result.normal_xyz)
             else:
@@ -124,7 +124,7 @@ class ExplorationLoop:
             record = touch_record(len(touches), plan.target_xyz, result.contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
                                   path_xyz=path, path_followed_m=None if hit is None else free_m, slide=slide,
-                                  stream=stream)
+                                  stream=stream, contacts_used=used)
             touches.append(record)
             if progress is not None:
                 progress(record)

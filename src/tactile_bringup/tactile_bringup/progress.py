@@ -8,6 +8,7 @@ A touch record is one entry of the report's ``touches`` list
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -20,6 +21,8 @@ from . import plots
 from .cores import make_estimator
 from .evaluation import Evaluator
 from .report import check_report, make_report, write_report
+
+_LOG = logging.getLogger("tactile_bringup.progress")
 
 
 def _round(v: Sequence[float]) -> list:
@@ -51,7 +54,7 @@ def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
                  time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
                  path_xyz=None, path_followed_m: Optional[float] = None, slide=None,
-                 stream: Optional[list] = None) -> dict:
+                 stream: Optional[list] = None, contacts_used: Optional[int] = None) -> dict:
     """The report entry of one touch, with metrics of the estimate after it.
 
     ``path_xyz`` (K, 3): the free-space path from the tip to the pre-touch point
@@ -61,7 +64,9 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
     ``slide_contacts`` (K, 3, 0.1 mm); ``contacts_gathered`` counts the touch's
     contacts (a poke: 1 or 0). ``stream``: checkpoints of the estimate while the
     slide's contacts streamed in (``{travel_m, time_s, iou, iou_reachable,
-    contacts}``, cumulative over the run; :func:`tactile_bringup.slide_touch.observe_stream`).
+    contacts}``, cumulative over the run; :func:`tactile_bringup.slide_touch.observe_stream`);
+    ``contacts_used``: how many of the slide's contacts the estimator took (the rest were thinned
+    as already known).
     """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
@@ -86,6 +91,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "slide_contacts": None if slide is None else np.round(slide.points_xyz, 4).tolist(),
         "contacts_gathered": int(contact) + (0 if slide is None else slide.n_contacts),
         "stream": stream,
+        "slide_contacts_used": contacts_used,
     }
 
 
@@ -116,9 +122,13 @@ def write_outputs(report: dict, estimator, evaluator: Optional[Evaluator], out_d
         shape = out_dir / ("shape.csv" if mode == "2d" else "shape.ply")
         estimator.export_shape(shape)
         written.append(str(shape))
-    plots.plot_progress(report, out_dir / "progress.png", surface,
-                        evaluator.true_surface if evaluator else None, estimator=estimator,
-                        obj=evaluator.obj if evaluator else None)
+    try:  # a figure that fails must not cost the run its report and shape (written above)
+        plots.plot_progress(report, out_dir / "progress.png", surface,
+                            evaluator.true_surface if evaluator else None, estimator=estimator,
+                            obj=evaluator.obj if evaluator else None)
+    except Exception as exc:  # noqa: BLE001 - any plotting failure; the data is safe
+        _LOG.error("progress.png not written: %s: %s (report.json and the shape are)", type(exc).__name__, exc)
+        return written
     written.append(str(out_dir / "progress.png"))
     return written
 

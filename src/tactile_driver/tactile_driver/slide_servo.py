@@ -69,8 +69,8 @@ class SlideServoConfig:
 
     slide_speed_mps: float = 0.05
     control_rate_hz: float = 100.0
-    target_force_n: float = 0.5
-    min_force_n: float = 0.1
+    target_force_n: float = 0.15
+    min_force_n: float = 0.06
     max_force_n: float = 3.0
     gain_m_per_n: float = 2.0e-4
     max_correction_m: float = 3.0e-4

@@ -104,7 +104,7 @@ class SimulatedSensorDevice:
         self.stats = DeviceStats()
         self._rng = np.random.default_rng(seed + 1)  # faults only
         self.seed = int(seed)
-        self._motion: Optional[tuple[int, float]] = None  # (key, start time) of the commanded motion
+        self._motions: list[tuple[int, float]] = []  # (key, start time): the motion under way, then any queued
         self._out = bytearray()  # transmit buffer
         self._master: Optional[int] = None
         self._slave: Optional[int] = None
@@ -181,7 +181,9 @@ class SimulatedSensorDevice:
         timing between motions was. ``key`` identifies the motion (the rig
         uses a checksum of the trajectory: the same command gives the same key).
         """
-        self._motion = (int(key), float(start_s))
+        # A motion that starts later (a timed start) takes over at its start: until then the frames of
+        # the motion under way keep their keys (a repeated key would repeat frames: "stuck" taxels).
+        self._motions = [m for m in self._motions if m[1] < start_s][-1:] + [(int(key), float(start_s))]
 
     def noise_rng(self, k: int, t_s: float, loaded: bool) -> np.random.Generator:
         """The noise stream of frame ``k`` at ``t_s`` (see :meth:`begin_motion`).
@@ -192,10 +194,11 @@ class SimulatedSensorDevice:
         started reading, and unloaded frames never trip a contact. Loaded
         frames use the motion's keyed stream.
         """
-        if loaded and self._motion is not None:
-            key, start_s = self._motion
+        started = [m for m in self._motions if m[1] <= t_s + 1e-9]
+        if loaded and started:
+            key, start_s = started[-1]
             j = int(round((t_s - start_s) * self.frame_rate_hz))
-            return np.random.default_rng([self.seed, 1, key, max(j, 0)])
+            return np.random.default_rng([self.seed, 1, key, j])
         return np.random.default_rng([self.seed, 2, k % self.IDLE_NOISE_PERIOD])
 
     def step(self, now_s: float) -> int:
