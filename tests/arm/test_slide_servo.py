@@ -119,7 +119,7 @@ def test_thinner_keeps_contacts_by_distance_and_turn():
 @pytest.mark.parametrize("kw, match", [
     (dict(slide_speed_mps=0.0), "slide_speed_mps"),
     (dict(min_force_n=0.6, target_force_n=0.5), "force band"),
-    (dict(max_force_n=0.4), "force band"),
+    (dict(max_force_n=0.1), "force band"),
     (dict(lost_ticks=0), "lost_ticks"),
 ])
 def test_bad_config_is_refused_with_its_name(kw, match):

@@ -154,7 +154,9 @@ def test_slide_stops_cleanly_where_the_surface_ends(layout):
     assert res.stop in (SlideStop.LOST, SlideStop.FORCE)
     assert res.forces_all_n[:-1].max() <= cfg.max_force_n
     end = res.points_xyz[-1]
-    assert abs(end[0] - 0.46) < 0.005 and 0.03 - 0.006 < end[1] <= 0.03  # on a vertex the skin sinks in
+    # at the wall's end: on a knife-sharp vertex the pressure centroid (the detector's contact) sinks
+    # millimetres into the finger, so the point is good to under a tip radius (8 mm) there
+    assert np.linalg.norm(end[:2] - [0.46, 0.03]) < 0.008 and end[1] <= 0.03
     assert np.all(res.points_xyz[:, 1] <= 0.03)
     assert res.slid_m < 0.03 + 0.01
 

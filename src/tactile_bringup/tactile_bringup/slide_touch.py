@@ -88,16 +88,14 @@ def _along(slide: SlideResult, lead_m: float, lead_s: float, motion: MotionModel
 
 
 def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float, time_before_s: float,
-                   every: int = 4, known_mean_m: float = 0.0005, known_sd_m: float = 0.0008,
-                   min_radius_m: float = 0.002) -> tuple[list[dict], int]:
+                   every: int = 4, known_mean_m: float = 0.0005, known_sd_m: float = 0.0008) -> tuple[list[dict], int]:
     """Feed the slide's contacts to the estimator in the order sensed (as the driver streams them) and,
     every ``every`` contacts, a checkpoint of the estimate: ``{"travel_m", "time_s", "iou",
     "iou_reachable", "contacts"}`` with the run's cumulative travel and time at that contact.
 
     Thinning by variance: a contact the estimate already predicts (|μ(p)| < ``known_mean_m`` and
     σ(p) < ``known_sd_m``, predicted before its chunk is added) is skipped: a second lap over a
-    known surface adds nothing but cost. At a vertex (:func:`vertex_normals_dropped`) the contact
-    is a point without a normal. The estimator takes a chunk through ``add_observations``
+    known surface adds nothing but cost. The estimator takes a chunk through ``add_observations``
     when it has one, else one ``add_observation`` each. Returns (checkpoints, contacts added).
     """
     from tactile_common.fields import LABEL_CONTACT
@@ -108,7 +106,7 @@ def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float,
         return out, 0
     batch = getattr(estimator, "add_observations", None)
     K, used = slide.n_contacts, 0
-    normals = vertex_normals_dropped(slide.points_xyz, slide.normals_xyz, min_radius_m)
+    normals = slide.normals_xyz
     for lo in range(0, K, every):
         hi = min(K, lo + every)
         mu, var = estimator.predict(slide.points_xyz[lo:hi])
@@ -126,25 +124,3 @@ def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float,
                         "contacts": hi})
     return out, used
 
-
-def vertex_normals_dropped(points_xyz: np.ndarray, normals_xyz: np.ndarray, min_radius_m: float) -> np.ndarray:
-    """The normals, NaN where the surface turns on a radius below ``min_radius_m`` (a vertex).
-
-    Along a slide the normal turns by ds/ρ over a contact distance ds on a surface of curvature
-    radius ρ; a round tip wrapping a vertex sees the normal turn while the contact stays put
-    (ρ → 0), and the sensed normal there is the tip's direction, not the surface's (which has
-    none). ρ is estimated between each contact's neighbours: |Δp| / angle(n_{k−1}, n_{k+1}).
-    """
-    P = np.asarray(points_xyz, dtype=float)
-    N = np.asarray(normals_xyz, dtype=float).copy()
-    if len(P) < 3:
-        return N
-    a, b = np.arange(len(P)) - 1, np.arange(len(P)) + 1
-    a[0], b[-1] = 0, len(P) - 1
-    cos = np.clip(np.einsum("ij,ij->i", N[a], N[b]), -1.0, 1.0)
-    angle = np.arccos(cos)
-    dist = np.linalg.norm(P[b] - P[a], axis=1)
-    vertex = angle > 1e-6
-    vertex &= dist < min_radius_m * np.where(vertex, angle, 1.0)
-    N[vertex] = np.nan
-    return N
