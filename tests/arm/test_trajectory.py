@@ -78,3 +78,13 @@ def test_densify_steps_and_duplicates():
     np.testing.assert_array_equal(p[-1], [0.1, 0, 0])
     with pytest.raises(ValueError, match="NaN"):
         densify(np.array([[0, 0, np.nan]]), 0.01)
+
+
+def test_densify_counts_steps_robustly_at_whole_multiples():
+    """A segment a whole number of steps long gives the same waypoints when it is 1e-14 m longer."""
+    from tactile_driver.trajectory import densify
+
+    a = densify(np.array([[0.0, 0.0, 0.0], [0.04, 0.0, 0.0]]), 0.005)
+    b = densify(np.array([[0.0, 0.0, 0.0], [0.04 + 1e-14, 0.0, 0.0]]), 0.005)
+    assert len(a) == len(b) == 9
+    assert np.max(np.diff(a[:, 0])) <= 0.005 + 1e-12

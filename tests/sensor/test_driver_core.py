@@ -193,3 +193,25 @@ def test_frames_queued_during_a_disconnect_are_stale_after_the_reconnect():
     assert out.frames == [] and drv.stats.stale_frames == 5
     out = drv.feed(encode_frame(200, int(5.83 * 1e6), values), 5.831)
     assert len(out.frames) == 1 and out.frames[0][0] == pytest.approx(5.831, abs=1e-6)
+
+
+def test_a_waiting_contact_is_placed_with_the_pose_at_its_time_not_the_newest_one():
+    """An onset newer than every pose waits; a later read must not place it with the newest pose."""
+    layout = ring_layout()
+    model = SensorModel(layout, seed=0)
+    wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
+    tips = [[0.45, 0.0, 0.06]] * 40 + [[x, 0.0, 0.06] for x in np.linspace(0.499, 0.5006, 40)]
+    frames = make_stream(model, wall, tips)
+    drv = SensorDriver(layout)
+    placed = []
+    lag = 3  # poses arrive three frames late
+    for k, f in enumerate(frames):
+        t = 10.0 + 0.005 * k
+        if k >= lag:
+            placed += drv.add_pose(10.0 + 0.005 * (k - lag), tips[k - lag], [0, 0, 0, 1]) or []
+        placed += drv.feed(f, t + 0.001).contacts  # reads between the late poses
+    k_on = int(round((placed[0].stamp_s - 10.0) / 0.005))
+    true_tip = np.asarray(tips[k_on])  # the pose at the onset frame's own time
+    assert len(placed) == 1
+    # one tip radius ahead of the tip at the onset (the newest pose, 3 frames older, put it 80 µm short)
+    assert abs((placed[0].point_xyz[0] - true_tip[0]) - 0.01) < 2e-5

@@ -201,7 +201,7 @@ class ArmCommander:
         q0 = self._plan_start()[0]
         q1 = np.asarray(q_goal, dtype=float)
         span_m = float(np.linalg.norm(self.model.fk(q1)[0] - self.model.fk(q0)[0]))
-        n = max(2, int(np.ceil(span_m / step_m)) + 1)
+        n = max(2, int(np.ceil(span_m / step_m - 1e-9)) + 1)  # robust at whole multiples (see densify)
         qs = q0 + (q1 - q0) * np.linspace(0.0, 1.0, n)[:, None]
         qs[-1] = q1  # exactly
         tip = np.array([self.model.fk(q)[0] for q in qs])

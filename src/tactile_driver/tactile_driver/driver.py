@@ -108,8 +108,10 @@ class SensorDriver:
 
     def _resolve_pending(self, now_s: Optional[float]) -> list:
         done, keep = [], []
+        newest = self.poses.newest_s
         for stamp_s, est in self._pending:
-            pose = self.poses.at(stamp_s)
+            # Only a pose at or after the frame's time completes it (not the newest one within tolerance).
+            pose = self.poses.at(stamp_s) if newest is not None and newest >= stamp_s else None
             if pose is not None:
                 done.append(self._world(stamp_s, est, pose))
             elif now_s is not None and now_s - stamp_s > self.config.pose_wait_s:

@@ -133,7 +133,9 @@ def densify(path_xyz: np.ndarray, max_step_m: float) -> np.ndarray:
     if len(p) == 1:
         return p
     seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    n_sub = np.maximum(1, np.ceil(seg / max_step_m).astype(int))
+    # A length that is a whole number of steps (an approach of 4 cm in 5 mm steps) must not become one
+    # more step when it is 1e-14 m longer: that would give another trajectory for the same motion.
+    n_sub = np.maximum(1, np.ceil(seg / max_step_m - 1e-9).astype(int))
     # For segment k, fractions 0, 1/n, ..., (n-1)/n; then the last point.
     seg_idx = np.repeat(np.arange(len(seg)), n_sub)
     frac = np.concatenate([np.arange(n) / n for n in n_sub])
