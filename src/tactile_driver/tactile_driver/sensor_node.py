@@ -175,6 +175,9 @@ class TactileSensorNode(Node):
             level, message = DiagnosticStatus.WARN, "calibrating baseline"
         elif new_faults:
             level, message = DiagnosticStatus.WARN, "faults: " + ", ".join(new_faults)
+        elif counts["stuck_taxels"] or counts["dead_taxels"]:  # a state: reported for as long as it lasts
+            level, message = DiagnosticStatus.WARN, (f"taxels ignored: {counts['stuck_taxels']} stuck, "
+                                                     f"{counts['dead_taxels']} dead")
         else:
             level, message = DiagnosticStatus.OK, "streaming"
         values = [KeyValue(key="connected", value=str(self.link.connected).lower()),
