@@ -55,3 +55,19 @@ def test_3d_candidates_facing_down_are_skipped():
     res = off.plan(m, tip)
     reachable_best = cand[np.argmax(np.where(np.isfinite(res.travel_costs), cand["variance"], -1))]
     assert np.allclose(res.target_xyz, [reachable_best["x"], reachable_best["y"], reachable_best["z"]])
+
+
+def test_earlier_targets_are_revisited_rather_than_stopping_when_nothing_else_is_left():
+    m = sphere_map(96, 2, seed=1)
+    tip = np.array([0.33, 0.0, 0.06])
+    # a revisit radius that covers the whole circle: after one decision every candidate is an earlier target
+    planner = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "revisit_radius_m": 0.2}, seed=0)
+    first = planner.plan(m, tip)
+    second = planner.plan(m, tip)
+    assert first.ok and second.ok, second.message
+    assert "revisiting" in second.message and "\n" not in second.message
+    assert np.allclose(second.target_xyz, first.target_xyz)  # the most uncertain one again
+    # a target reported unreachable stays excluded (a wall, not a preference)
+    c = m[m["kind"] == 1]
+    res = planner.plan(m, tip, np.stack([c["x"], c["y"], c["z"]], axis=1))
+    assert res.status == "all_unreachable" and "near a target reported unreachable" in res.message

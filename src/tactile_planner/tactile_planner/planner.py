@@ -230,6 +230,13 @@ class TouchPlanner:
         excluded = np.zeros(m, bool)
         for mask in why.values():
             excluded |= mask
+        # "already targeted" is a preference, not a wall: when only earlier targets are left
+        # they are revisited rather than the run stopped with unconfirmed surface in reach
+        revisit = why.get("already targeted", np.zeros(m, bool))
+        hard = np.zeros(m, bool)
+        for k, mask in why.items():
+            if k != "already targeted":
+                hard |= mask
 
         p_in = float(p["p_inside_max"])
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
@@ -248,13 +255,21 @@ class TouchPlanner:
         why["no free pre-touch point"] = term_node < 0
         other = np.where(term_node >= 0, comp[np.maximum(term_node, 0)] != comp[start], False)
         why["in another free-space component than the tip"] = other
-        reachable = valid & ~excluded & (term_node >= 0) & ~other
+        reachable = valid & ~hard & (term_node >= 0) & ~other
         if reachable.any():
             why["last segment not free"] = reachable & ~graph.segments_free(
                 graph.xyz[np.maximum(term_node, 0)], pretouch)
             reachable &= ~why["last segment not free"]
+        revisiting = bool(reachable.any() and not (reachable & ~revisit).any())
+        if not revisiting:
+            reachable &= ~revisit
+        else:
+            excluded = hard
+            base["n_excluded"] = int(excluded.sum())
         base.update(start_snapped=snapped)
         snap_msg = " (tip inside the margin or blocked: snapped to the nearest free node)" if snapped else ""
+        if revisiting:
+            snap_msg += "; every reachable candidate was targeted before: revisiting"
         if not reachable.any():
             reasons = ", ".join(f"{int(v.sum())} {k}" for k, v in why.items() if v.any())
             return PlanResult("all_unreachable",
