@@ -91,7 +91,8 @@ def test_unconfirmed_surface_with_free_space_around_is_reachable_and_chosen():
     n = cands.normal[:, :2] / np.linalg.norm(cands.normal[:, :2], axis=1, keepdims=True)
     pre = cands.xyz[:, :2] + (p["standoff_m"] + p["tip_radius_m"]) * n
     h = float(np.max(lat.spacing_m))
-    inside = np.all((pre >= lat.origin + h) & (pre <= lat.origin + lat.spacing_m * (np.array(lat.shape) - 1) - h), axis=1)
+    hi = lat.origin + lat.spacing_m * (np.array(lat.shape) - 1)
+    inside = np.all((pre >= lat.origin + h) & (pre <= hi - h), axis=1)
     clear = (_clearance_oracle(est, pre) >= p["margin_m"] + h) & inside  # free space within the workspace
     unconfirmed = cands.variance_m2 > 10 * np.min(cands.variance_m2)
     assert (clear & unconfirmed).sum() >= 20  # the premise: much unknown surface with room around it
