@@ -143,7 +143,7 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
             js_pub.publish(invalid[feed["i"] % len(invalid)])
 
     g.node.create_timer(0.01, publish)
-    g.start("arm", [*ARM, "-p", "watchdog_timeout_s:=0.3"])
+    g.start("arm", [*ARM, "-p", "watchdog_timeout_s:=1.0"])  # well above a starved process's pauses (load ~25)
     g.wait_for(lambda: js_pub.get_subscription_count() and watch.publishers and done.publishers, 30, "commander")
     g.wait_for(lambda: "arm_commander ready" in g.procs["arm"].log(), 20, "the commander")
     touches = Touches(g)
@@ -153,7 +153,7 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
     t_switch = time.monotonic()
     g.wait_for(lambda: len(watch.sent) >= 2, 5, "the stop")
     assert watch.sent[1].points == []
-    assert time.monotonic() - t_switch < 2.0
+    assert time.monotonic() - t_switch < 3.0
     g.wait_for(lambda: done, 5, "touch_done")
     assert done[0].message == "aborted" and "stale" in done_values(done[0])["reason"]
     # While only invalid states arrive, a goal is refused without motion.
