@@ -85,6 +85,7 @@ class CommanderConfig:
     goal_tolerance_rad: float = 0.002
     goal_time_tolerance_s: float = 2.0
     contact_latency_s: float = 0.25
+    sensor_confirm_timeout_s: float = 10.0  # a driver that has not judged the end of an approach by then: abort
     start_lead_s: float = 0.0  # > 0: trajectories start this long after they are sent (header.stamp), not on receipt
     start_grid_s: float = 0.0  # > 0: and on a multiple of this (the simulated rig's tick), for identical sampling
     watchdog_timeout_s: float = 0.5
@@ -210,16 +211,43 @@ class ArmCommander:
                               self.limits.acceleration_rad_s2, speed_mps)
         return time_parameterize(qs, tip, limits)
 
-    def back_off(self, contact_xyz: np.ndarray, clearance_m: float) -> bool:
-        """Straight away from a contact the tip is on, at approach speed (world frame), to
-        :func:`~tactile_driver.contact.back_off_target` at ``tip_radius_m + clearance_m``:
-        the tip ends ``clearance_m`` off the surface. Contacts are ignored while backing off.
+    def back_off(self, contact_xyz: np.ndarray, clearance_m: float, contact_stamp_ns: Optional[int] = None) -> bool:
+        """Leave a contact met on a free-space path, at approach speed. Contacts are ignored meanwhile.
+
+        When the last task was that path and ``contact_stamp_ns`` is given: back along the path, in
+        joint space, to its last waypoint at least ``clearance_m`` of travel before the contact
+        (the path was free there), so the arm ends on joints that do not depend on how late it
+        stopped. Otherwise straight away from the contact to
+        :func:`~tactile_driver.contact.back_off_target` at ``tip_radius_m + clearance_m``: the tip
+        ends ``clearance_m`` off the surface.
         """
+        if not clearance_m >= 0:
+            return self._reject("back_off", "clearance must be >= 0")
+        q_back = self._path_point_before(contact_stamp_ns, clearance_m)
+        if q_back is not None:
+            try:
+                traj = self.plan_joint_move(q_back, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+            except (OutsideWorkspace, TrajectoryError) as exc:
+                return self._reject("back_off", str(exc))
+            self.back_off_xyz = self.model.fk(q_back)[0]  # the nominal end of the move (the touch cycle reports it)
+            return self._start("back_off", None, self.cfg.approach_speed_mps, self.cfg.approach_step_m, traj=traj)
         target = back_off_target(contact_xyz, self._plan_start()[1], self.cfg.tip_radius_m + clearance_m)
-        if target is None or not clearance_m >= 0:
-            return self._reject("back_off", "needs a finite contact point away from the tip centre and clearance >= 0")
-        self.back_off_xyz = target  # the nominal end of the move (the touch cycle reports it)
+        if target is None:
+            return self._reject("back_off", "needs a finite contact point away from the tip centre")
+        self.back_off_xyz = target
         return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+
+    def _path_point_before(self, contact_stamp_ns: Optional[int], clearance_m: float) -> Optional[np.ndarray]:
+        """Joints of the last path waypoint ≥ ``clearance_m`` of tip travel before the contact, or None."""
+        task = self._last
+        if contact_stamp_ns is None or task is None or task.kind != "follow_path" or len(task.traj.times_s) < 2:
+            return None
+        t_contact = contact_stamp_ns * 1e-9 - task.start_s
+        tip = task.traj.tip_xyz
+        travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+        at_contact = np.interp(t_contact, task.traj.times_s, travelled)
+        ok = np.flatnonzero(travelled <= at_contact - clearance_m)
+        return None if len(ok) == 0 else np.array(task.traj.positions_rad[ok[-1]], dtype=float)
 
     def stop(self) -> None:
         """Stop now and hold (empty trajectory); the current task ends CANCELED."""
@@ -446,8 +474,11 @@ class ArmCommander:
         if task.kind == "approach" and np.isfinite(self.sensor_decided_s):
             # Free space only once the driver has judged every frame up to the end of the approach
             # (its contact, if any, is then already here); a driver that falls silent aborts it.
-            if self.sensor_decided_s < end_s or self.contacts_received < self.sensor_contacts_sent:
-                if elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+            # The frames of contact_latency_s at rest at full depth count too (a contact sensed there is a
+            # contact): a fixed window in the rig's time, so the outcome never depends on how late we look.
+            settled_s = end_s + self.cfg.contact_latency_s
+            if self.sensor_decided_s < settled_s or self.contacts_received < self.sensor_contacts_sent:
+                if elapsed > task.traj.duration_s + self.cfg.contact_latency_s + self.cfg.sensor_confirm_timeout_s:
                     self._halt(TaskResult.ABORTED, "the sensor driver did not confirm the end of the approach")
                 return
         elif task.kind == "approach" and elapsed < task.traj.duration_s + self.cfg.contact_latency_s:

@@ -64,12 +64,15 @@ PARAMS = {
     "max_tilt_rad": (_D.max_tilt_rad, "max finger tilt from vertical", {"ge": 0.0}),
     "goal_tolerance_rad": (_D.goal_tolerance_rad, "joint error accepted at the end of a trajectory", {"gt": 0.0}),
     "goal_time_tolerance_s": (_D.goal_time_tolerance_s, "extra time to reach it before aborting", {"ge": 0.0}),
-    "contact_latency_s": (_D.contact_latency_s, "an approach that reached full depth waits this long (node "
-                          "clock) for a contact still on its way from the sensor before it counts as free space", {"ge": 0.0}),
+    "contact_latency_s": (_D.contact_latency_s, "an approach that reached full depth counts the frames of this "
+                          "long at rest there (a contact then is a contact); without driver progress messages, "
+                          "the time it waits for a late contact", {"ge": 0.0}),
     "start_lead_s": (_D.start_lead_s, "0: a trajectory starts when the controller receives it (ros2_control's "
                      "default); > 0: it starts this long after it is sent (header.stamp)", {"ge": 0.0}),
     "start_grid_s": (_D.start_grid_s, "with start_lead_s: start times on a multiple of this (the simulated rig's "
                      "tick), so the rig samples every motion identically (0 = no grid)", {"ge": 0.0}),
+    "sensor_confirm_timeout_s": (_D.sensor_confirm_timeout_s, "an approach at full depth waits this long (node "
+                                 "clock) for the driver to judge its last frames, then aborts", {"gt": 0.0}),
     "watchdog_timeout_s": (_D.watchdog_timeout_s, "joint states older than this (steady clock) stop motion", {"gt": 0.0}),
     "control_period_s": (_D.control_period_s, "watchdog / completion check period (steady clock)", {"gt": 0.0}),
     "move_to_start": (True, "at start-up move the tip to start_tip_xyz_m (the explorer waits for it there)"),
