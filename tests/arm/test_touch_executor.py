@@ -69,7 +69,7 @@ class FakeArm:
     def retract(self):
         return self._verb("retract", 0.02)
 
-    def back_off(self, contact_xyz, clearance_m):
+    def back_off(self, contact_xyz, clearance_m, contact_stamp_ns=None):
         self.back_off_args = (np.asarray(contact_xyz), clearance_m)
         self.back_off_xyz = np.asarray(contact_xyz) + [0.0, 0.0, 0.02]  # where the fake backs off to
         return self._verb("back_off", 0.01)

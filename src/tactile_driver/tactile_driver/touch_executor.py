@@ -151,7 +151,7 @@ class TouchExecutor:
         self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, task.contact_stamp_ns
         self._reason = f"path: {task.reason}"
         contact_xyz = fields.xyz(np.atleast_1d(task.contact))[0]
-        if not self.arm.back_off(contact_xyz, self.back_off_clearance_m):
+        if not self.arm.back_off(contact_xyz, self.back_off_clearance_m, task.contact_stamp_ns):
             return self._done(OUTCOME_ABORTED, f"path: {task.reason}; back_off: {self.arm.last_task.reason}")
         self._end_xyz = np.asarray(self.arm.back_off_xyz, dtype=float)
         self._state = "retract"
