@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from tactile_common import qos, topics
 from tactile_common.stamps import time_from_ns
 from tactile_driver.arm_msgs import joint_positions, pose_stamped
 from tactile_driver.kinematics import ArmModel
-from tactile_driver.trajectory_monitor import TrajectoryMonitor
+from tactile_driver.trajectory_monitor import TrajectoryMonitor, Violation
 
 ROOT = Path(__file__).resolve().parents[2]
 ARM_YAML = ROOT / "src/tactile_driver/config/arm_commander.yaml"
@@ -32,23 +33,32 @@ def commander_monitor(**kwargs) -> TrajectoryMonitor:
 
 
 class TrajectoryWatch:
-    """Checks every trajectory published for the controller, from the measured state when it arrived.
+    """Checks every trajectory published for the controller: limits and box at once, its start later.
+
+    The start must be a state the arm was in when the trajectory arrived (the simulated controller
+    jumps to a first point at time 0). Which joint state this process took last is not that state on
+    a loaded machine (the executor may take the trajectory before joint states already queued), so
+    the start is compared, in :meth:`assert_safe`, with every state measured within
+    ``start_window_s`` of the trajectory's arrival (steady clock).
 
     Attributes:
         sent: every JointTrajectory received (stops included).
         monitor: the :class:`TrajectoryMonitor`; ``monitor.violations`` must stay empty.
     """
 
-    def __init__(self, graph, monitor: TrajectoryMonitor) -> None:
+    def __init__(self, graph, monitor: TrajectoryMonitor, start_window_s: float = 1.0) -> None:
         self.monitor = monitor
         self.names = list(monitor.model.joint_names)
+        self.start_window_s = float(start_window_s)
         self.q_now = None
         self.sent: list[JointTrajectory] = []
         self.states = 0
+        self._history: list = []  # (arrival s, q) of every joint state
+        self._starts: list = []  # (arrival s, first point) of every motion
         node = graph.node
         self.subscription = node.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self._on_traj,
                                                      qos.COMMANDS)
-        node.create_subscription(JointState, topics.JOINT_STATES, self._on_state, qos.SENSOR)
+        node.create_subscription(JointState, topics.JOINT_STATES, self._on_state, qos.STATE)
 
     @property
     def publishers(self) -> int:
@@ -61,6 +71,7 @@ class TrajectoryWatch:
         q = joint_positions(msg, self.names)
         if q is not None:
             self.q_now, self.states = q, self.states + 1
+            self._history.append((time.monotonic(), q))
 
     def _on_traj(self, msg: JointTrajectory) -> None:
         self.sent.append(msg)
@@ -69,10 +80,28 @@ class TrajectoryWatch:
         qd = [list(p.velocities) for p in msg.points]
         if not any(qd):
             qd = None
-        self.monitor.check(msg.joint_names, t, q, qd, q_now=self.q_now)
+        self.monitor.check(msg.joint_names, t, q, qd)
+        if msg.points and t[0] == 0.0 and sorted(msg.joint_names) == sorted(self.names):
+            order = [list(msg.joint_names).index(j) for j in self.names]
+            self._starts.append((time.monotonic(), np.asarray(q[0], dtype=float)[order]))
+
+    def start_violations(self) -> list[Violation]:
+        """Motions whose first point is no state measured within the window around their arrival."""
+        out = []
+        for i, (t, q0) in enumerate(self._starts):
+            near = [q for s, q in self._history if abs(s - t) <= self.start_window_s]
+            jump = min((float(np.abs(q - q0).max()) for q in near), default=float("inf"))
+            if jump > self.monitor.start_tolerance_rad:
+                gaps = [s - t for s, _ in self._history]
+                nearest = min(gaps, key=abs) if gaps else float("nan")
+                out.append(Violation("start", "", 0.0, jump, self.monitor.start_tolerance_rad,
+                                     f"rad from every state measured within {self.start_window_s:g} s (motion {i}; "
+                                     f"{len(near)} states there, the nearest {nearest:+.2f} s away)"))
+        return out
 
     def assert_safe(self) -> None:
-        assert self.monitor.violations == [], "\n".join(map(str, self.monitor.violations))
+        found = self.monitor.violations + self.start_violations()
+        assert found == [], "\n".join(map(str, found))
 
 
 def goal_and_path(pre_touch_xyz, approach_dir, path_xyz, stamp_ns: int, frame_id: str = "world"):

@@ -139,7 +139,8 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
     pub_req = node.create_publisher(DiagnosticStatus, "/planner/request", qos.EVENTS)
     pub_done = node.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
     g.wait_for(lambda: pub_map.get_subscription_count() and pub_tip.get_subscription_count()
-               and pub_req.get_subscription_count() and pub_done.get_subscription_count() and goals.publishers and paths.publishers and status.publishers,
+               and pub_req.get_subscription_count() and pub_done.get_subscription_count()
+               and goals.publishers and paths.publishers and status.publishers,
                30, "planner subscriptions and writers")
 
     def send_map(msg):  # latched depth 1: each map delivered before the next replaces it
@@ -266,7 +267,7 @@ def test_viz_ignores_bad_contacts_maps_and_joint_states_and_draws_the_valid_cont
     arm = g.collect("/viz/arm", MarkerArray, qos.SENSOR)
     contacts_pub = g.node.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
     map_pub = g.node.create_publisher(PointCloud2, topics.VARIANCE_MAP, qos.MAP)
-    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.STATE)
     g.wait_for(lambda: contacts_pub.get_subscription_count() and map_pub.get_subscription_count()
                and js_pub.get_subscription_count() and markers.publishers and arm.publishers, 30, "the viz node")
     nan = _contact(0.3)

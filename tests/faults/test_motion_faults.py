@@ -93,7 +93,7 @@ def test_estop_during_an_approach_then_a_touch_from_where_the_arm_stopped(ros_gr
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     _start_rig_and_commander(g)
     estop = g.node.create_publisher(Bool, topics.ESTOP, qos.LATCHED)
-    g.wait_for(lambda: len(poses) > 5 and watch.publishers and done.publishers, 30,
+    g.wait_for(lambda: len(poses) > 5 and watch.states > 5 and watch.publishers and done.publishers, 30,
                "fingertip poses and the commander's writers")
     touches = Touches(g)
     touches.send(7)
@@ -125,7 +125,7 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
     g = ros_graph
     watch = TrajectoryWatch(g, commander_monitor())
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
-    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.SENSOR)
+    js_pub = g.node.create_publisher(JointState, topics.JOINT_STATES, qos.STATE)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     nan = list(HOME)
     nan[3] = float("nan")
@@ -144,7 +144,8 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
 
     g.node.create_timer(0.01, publish)
     g.start("arm", [*ARM, "-p", "watchdog_timeout_s:=1.0"])  # well above a starved process's pauses (load ~25)
-    g.wait_for(lambda: js_pub.get_subscription_count() and watch.publishers and done.publishers, 30, "commander")
+    g.wait_for(lambda: js_pub.get_subscription_count() and watch.states > 5 and watch.publishers and done.publishers,
+               30, "commander")
     g.wait_for(lambda: "arm_commander ready" in g.procs["arm"].log(), 20, "the commander")
     touches = Touches(g)
     touches.send(11)
@@ -189,7 +190,8 @@ def test_malformed_contacts_during_an_approach_do_not_stop_it(ros_graph):
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     contacts = g.node.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
     _start_rig_and_commander(g)
-    g.wait_for(lambda: len(poses) > 5 and watch.publishers and done.publishers and contacts.get_subscription_count(),
+    g.wait_for(lambda: len(poses) > 5 and watch.states > 5 and watch.publishers and done.publishers
+               and contacts.get_subscription_count(),
                30, "fingertip poses, the commander's writers and its contact subscription")
     Touches(g).send(7)
     g.wait_for(lambda: len(watch.sent) >= 2, 40, "the approach trajectory")

@@ -39,7 +39,7 @@ class PoseScript:
         self.moving, self.travel_m = False, 0.0
         self.extra: list = []  # functions now_s -> PoseStamped, each published once
         self.ticks = 0
-        self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.SENSOR)
+        self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.STATE)
         graph.node.create_timer(PERIOD_S, self.publish)
 
     def wait_for_subscribers(self, contacts):
@@ -58,7 +58,7 @@ class PoseScript:
             self.travel_m = min(self.travel_m + SPEED_MPS * PERIOD_S, 0.03)
         self.pub.publish(pose_msg(self.start + self.travel_m * self.dir, topics.WORLD_FRAME, now.to_msg()))
         self.ticks += 1
-        if self.extra and self.ticks % 10 == 0:  # spaced: the reader's queue (SENSOR, depth 10) never overflows
+        if self.extra and self.ticks % 10 == 0:  # spaced out between the valid poses
             self.pub.publish(self.extra.pop(0)(t))
 
 

@@ -173,11 +173,11 @@ class TactileSensorNode(Node):
             level, message = DiagnosticStatus.WARN, "bytes but no valid frame (baud rate? protocol?)"
         elif not det.calibrated:
             level, message = DiagnosticStatus.WARN, "calibrating baseline"
-        elif new_faults:
-            level, message = DiagnosticStatus.WARN, "faults: " + ", ".join(new_faults)
-        elif counts["stuck_taxels"] or counts["dead_taxels"]:  # a state: reported for as long as it lasts
-            level, message = DiagnosticStatus.WARN, (f"taxels ignored: {counts['stuck_taxels']} stuck, "
-                                                     f"{counts['dead_taxels']} dead")
+        elif new_faults or counts["stuck_taxels"] or counts["dead_taxels"]:  # taxels: for as long as it lasts
+            ignored = counts["stuck_taxels"] or counts["dead_taxels"]
+            level, message = DiagnosticStatus.WARN, "; ".join(filter(None, [
+                "faults: " + ", ".join(new_faults) if new_faults else "",
+                f"taxels ignored: {counts['stuck_taxels']} stuck, {counts['dead_taxels']} dead" if ignored else ""]))
         else:
             level, message = DiagnosticStatus.OK, "streaming"
         values = [KeyValue(key="connected", value=str(self.link.connected).lower()),

@@ -55,7 +55,8 @@ class Violation:
 
     def __str__(self) -> str:
         who = f" {self.joint}" if self.joint else ""
-        return f"{self.kind}{who} at t={self.time_s:.3f} s: {self.value:.6g} beyond {self.limit:.6g} {self.detail}".strip()
+        text = f"{self.kind}{who} at t={self.time_s:.3f} s: {self.value:.6g} beyond {self.limit:.6g} {self.detail}"
+        return text.strip()
 
 
 class TrajectoryMonitor:

@@ -53,7 +53,7 @@ class SimSensorDeviceNode(Node):
         self.device.open()
         self.pose_timeout_s = p.pose_timeout_s
         self._last_pose_s = None
-        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.SENSOR)
+        self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.STATE)
         self.create_timer(p.step_period_s, self._step)
         self.get_logger().info(f"sim_sensor_device: object '{p.object}' ({p.mode}), {layout.n_taxels} taxels "
                                f"at {p.frame_rate_hz:g} Hz on {p.link_path}")
