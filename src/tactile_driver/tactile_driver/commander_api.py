@@ -471,12 +471,13 @@ class ArmCommander:
                     self._halt(TaskResult.ABORTED, f"goal not reached: joint error {err:.3f} rad")
                 return
             end_s = task.extra.get("arrived_s", self.q_stamp_s)
-        if task.kind == "approach" and np.isfinite(self.sensor_decided_s):
-            # Free space only once the driver has judged every frame up to the end of the approach
-            # (its contact, if any, is then already here); a driver that falls silent aborts it.
-            # The frames of contact_latency_s at rest at full depth count too (a contact sensed there is a
-            # contact): a fixed window in the rig's time, so the outcome never depends on how late we look.
-            settled_s = end_s + self.cfg.contact_latency_s
+        if task.kind in ("approach", "follow_path") and np.isfinite(self.sensor_decided_s):
+            # Free space only once the driver has judged every frame up to the end of the motion (its
+            # contact, if any, is then already here: a path that met the object ends as a contact however
+            # late the message is); a driver that falls silent aborts it. For an approach, the frames of
+            # contact_latency_s at rest at full depth count too (a contact sensed there is a contact): a
+            # fixed window in the rig's time, so the outcome never depends on how late we look.
+            settled_s = end_s + (self.cfg.contact_latency_s if task.kind == "approach" else 0.0)
             if self.sensor_decided_s < settled_s or self.contacts_received < self.sensor_contacts_sent:
                 if elapsed > task.traj.duration_s + self.cfg.contact_latency_s + self.cfg.sensor_confirm_timeout_s:
                     self._halt(TaskResult.ABORTED, "the sensor driver did not confirm the end of the approach")
