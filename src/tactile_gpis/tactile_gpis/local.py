@@ -120,8 +120,9 @@ class LocalGPIS:
         leaf_capacity: observations in a leaf before it splits.
         context_m, context_spacings: data box margin: an expert sees the data
             c = max(context_m, context_spacings * s) beyond its cell, s the spacing of
-            its own observations (cell size / own^(1/(d-1)), surface data), at most
-            2.5 context_m: sparse data need a wider context than dense data (measured).
+            the observations where its parent split (parent size / own^(1/(d-1)),
+            surface data), at most 2.5 context_m: sparse data need a wider context than
+            dense data (measured).
         blend: weight ramp half-width, as a fraction of min(cell size, context_m) (< 1).
         min_leaf_m: leaves never split below this size.
         anchor_spacing_m, max_anchors, anchor_batch, anchor_delay: the anchor subset.
@@ -190,9 +191,8 @@ class LocalGPIS:
         self._refresh_coarse()
         self._add_band_nodes(np.flatnonzero(np.abs(self._mu_a_lat) < self.band_m))
 
-    def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int, n_own: int = 0) -> _Leaf:
-        spacing = float((hi - lo).min()) / max(n_own, 1) ** (1.0 / (self.dim - 1))
-        c = min(max(self.context_m, self.context_spacings * spacing), 2.5 * self.context_m)
+    def _new_leaf(self, lo: np.ndarray, hi: np.ndarray, depth: int, spacing_m: float = np.inf) -> _Leaf:
+        c = min(max(self.context_m, self.context_spacings * spacing_m), 2.5 * self.context_m)
         return _Leaf(lo, hi, depth, self.kernel, self.dim, c, self.blend, self.jitter)
 
     @property
@@ -419,7 +419,9 @@ class LocalGPIS:
                     break
             else:
                 owns[0].append(j)
-        kids = [self._new_leaf(lo, hi, parent.depth + 1, len(own)) for (lo, hi), own in zip(boxes, owns)]
+        # spacing of the data where the split happens: the parent's cell over its own count
+        spacing = float((parent.hi - parent.lo).min()) / len(parent.own) ** (1.0 / (self.dim - 1))
+        kids = [self._new_leaf(lo, hi, parent.depth + 1, spacing) for lo, hi in boxes]
         starts, lens = np.asarray(self._obs_start), np.asarray(self._obs_len)
         for kid, own in zip(kids, owns):
             kid.own = own
