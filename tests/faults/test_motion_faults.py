@@ -174,9 +174,6 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
     watch.assert_safe()
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: ArmCommander._on_contacts (commander_api.py) takes any label-1 "
-                   "point as a contact, also a NaN point or one in another frame, and stops the approach; fix: "
-                   "ignore and count (invalid_contacts) clouds not in 'world' or with non-finite points")
 def test_malformed_contacts_during_an_approach_do_not_stop_it(ros_graph):
     from sensor_msgs.msg import PointCloud2
 

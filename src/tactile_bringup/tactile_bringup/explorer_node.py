@@ -42,8 +42,6 @@ from .experiment import Experiment
 from .exploration_cycle import CycleConfig, ExplorationCycle
 from .progress import RunRecorder
 
-REQUEST = "/planner/request"
-PLANNER_STATUS = "/planner/status"
 
 PARAMS = {
     "mode": ("2d", "'2d' or '3d'", {"choices": ("2d", "3d")}),
@@ -72,13 +70,13 @@ class ExplorerNode(Node):
         self.exp = Experiment.from_files(p.mode, files)
         self.run = RunRecorder(self.exp, Path(p.out_dir), evaluate=p.evaluate)
         cfg = CycleConfig(**{k: getattr(p, k) for k in CycleConfig.__dataclass_fields__})
-        self.pub_request = self.create_publisher(DiagnosticStatus, REQUEST, qos.EVENTS)
+        self.pub_request = self.create_publisher(DiagnosticStatus, topics.REQUEST, qos.EVENTS)
         self.cycle = ExplorationCycle(cfg, self.exp.start_tip_xyz, self.run, self.send_request, time.monotonic,
                                       lambda: self.get_clock().now().nanoseconds, self.get_logger())
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self.on_tip, qos.SENSOR)
         self.create_subscription(PoseStamped, topics.GOAL, self.on_goal, qos.EVENTS)
         self.create_subscription(PathMsg, topics.PATH, self.on_path, qos.EVENTS)
-        self.create_subscription(DiagnosticStatus, PLANNER_STATUS, self.on_planner_status, qos.EVENTS)
+        self.create_subscription(DiagnosticStatus, topics.PLANNER_STATUS, self.on_planner_status, qos.EVENTS)
         self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.OBSERVATIONS)
         self.create_subscription(DiagnosticStatus, topics.TOUCH_DONE, self.on_touch_done, qos.EVENTS)
         self.create_timer(0.2, self.on_timer)

@@ -21,11 +21,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from tactile_gpis import estimator as gpis_estimator
-from tactile_gpis.estimator import ShapeEstimator
-from tactile_planner import planner as soc_planner
-from tactile_planner.planner import TouchPlanner
-
+from .cores import make_estimator, make_planner
 from .evaluation import Evaluator
 from .experiment import Experiment
 from .motion import MotionModel, polyline_length_m
@@ -35,22 +31,6 @@ from .sensing import SimulatedFinger
 from .slide_touch import observe_stream, slide_touch
 
 ProgressFn = Callable[[dict], None]
-
-
-def _declared(params: dict, table: dict) -> dict:
-    """A node ignores the parameters of a file that it does not declare; so do we."""
-    return {k: v for k, v in params.items() if k in table}
-
-
-def make_estimator(experiment: Experiment) -> ShapeEstimator:
-    """The estimator the gpis_estimator node builds for this experiment."""
-    return ShapeEstimator.from_params(_declared(experiment.gpis_params, gpis_estimator.PARAMETERS))
-
-
-def make_planner(experiment: Experiment) -> TouchPlanner:
-    """The planner the soc_planner node builds for this experiment."""
-    params = _declared(experiment.planner_params, soc_planner.PARAMETERS)
-    return TouchPlanner.from_params(params, seed=int(experiment.planner_params.get("seed", experiment.seed)))
 
 
 class ExplorationLoop:

@@ -9,15 +9,13 @@ one frame at a time, with the same parameters.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from pathlib import Path
 from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from tactile_common.params_file import package_config
 from tactile_common.touch_geometry import TouchGeometry
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
-from tactile_driver.taxels import TaxelLayout, load_layout
+from tactile_driver.taxels import TaxelLayout, load_layout, resolve_layout_file
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
 from tactile_driver.slide_servo import ContactThinner, SlideServo, SlideServoConfig
@@ -32,11 +30,7 @@ def _dataclass_from(cls, params: Mapping[str, Any], prefix: str = ""):
 
 def layout_for(mode: str, sensor_params: Mapping[str, Any]) -> TaxelLayout:
     """The taxel layout the driver loads: its ``layout_file`` parameter, else the mode's default."""
-    name = sensor_params.get("layout_file") or ("taxels_ring.yaml" if mode == "2d" else "taxels_hemisphere.yaml")
-    path = Path(name)
-    if not path.is_absolute() and len(path.parts) == 1:  # a bare name: the driver's config folder
-        path = package_config("tactile_driver", name)
-    return load_layout(path)
+    return load_layout(resolve_layout_file(sensor_params.get("layout_file") or "", mode))
 
 
 @dataclass

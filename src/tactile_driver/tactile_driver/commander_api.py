@@ -408,13 +408,20 @@ class ArmCommander:
             self.counters["invalid_contacts"] += 1
             self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
             return
-        if np.any(points["label"] == fields.LABEL_CONTACT):
+        hits = points[points["label"] == fields.LABEL_CONTACT]
+        if len(hits) and (msg.header.frame_id != topics.WORLD_FRAME or not np.all(np.isfinite(fields.xyz(hits)))):
+            # A contact that is not a place in the world cannot stop an approach (the touch would end
+            # without an observation); the driver never sends one.
+            self.counters["invalid_contacts"] += 1
+            self.log.warning(f"contact ignored: frame '{msg.header.frame_id}' or a non-finite point",
+                             throttle_duration_sec=5.0)
+            return
+        if len(hits):
             self.contacts_received += 1
         task = self._task
         if task is None or task.kind in ("retract", "back_off"):  # moving off the surface
             return
         stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
-        hits = points[points["label"] == fields.LABEL_CONTACT]
         if not len(hits) or stamp_ns * 1e-9 < task.start_s - 1e-3:
             return
         task.contact, task.contact_stamp_ns = hits[0], stamp_ns

@@ -38,8 +38,6 @@ from .maps import MapError, parse_variance_map
 from .planner import NODE_PARAMETERS, PARAMETERS, PlanResult, TouchPlanner
 from .pose import approach_rotation, quaternion_xyzw
 
-REQUEST = "/planner/request"
-STATUS = "/planner/status"
 KEEP_ANSWERS = 200  # answered requests kept for re-sending
 
 
@@ -63,10 +61,10 @@ class SocPlannerNode(Node):
         self.invalid_inputs = 0
         self.pub_goal = self.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
         self.pub_path = self.create_publisher(Path, topics.PATH, qos.EVENTS)
-        self.pub_status = self.create_publisher(DiagnosticStatus, STATUS, qos.EVENTS)
+        self.pub_status = self.create_publisher(DiagnosticStatus, topics.PLANNER_STATUS, qos.EVENTS)
         self.create_subscription(PointCloud2, topics.VARIANCE_MAP, self.on_map, qos.MAP)
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self.on_tip, qos.SENSOR)
-        self.create_subscription(DiagnosticStatus, REQUEST, self.on_request, qos.EVENTS)
+        self.create_subscription(DiagnosticStatus, topics.REQUEST, self.on_request, qos.EVENTS)
         self.create_subscription(DiagnosticStatus, topics.TOUCH_DONE, self.on_touch_done, qos.EVENTS)
         self.create_timer(0.5, self.check_timeout)
         self.get_logger().info(
