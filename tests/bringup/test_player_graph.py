@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader
 from rosgraph_msgs.msg import Clock
@@ -18,6 +19,8 @@ from test_recorder_graph import LATCHED_TEXT, N_POSES, cloud_key, decode, record
 
 pytestmark = pytest.mark.graph
 POSE_T = "geometry_msgs/msg/PoseStamped"
+# The recorded publishers were volatile, so the player's are too: a durable (qos.EVENTS) reader would not match.
+VOLATILE = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
 
 
 @pytest.fixture
@@ -44,8 +47,8 @@ def test_replay_delivers_every_message_in_order(ros_graph, fresh_graph, tmp_path
             recorded.setdefault(conn.topic, []).append(bytes(data))
         start_ns, end_ns = reader.start_time, reader.end_time
 
-    poses = fresh_graph.collect("/pose", PoseStamped, qos.EVENTS, raw=True)
-    clouds = fresh_graph.collect("/cloud", PointCloud2, qos.EVENTS, raw=True)
+    poses = fresh_graph.collect("/pose", PoseStamped, VOLATILE, raw=True)
+    clouds = fresh_graph.collect("/cloud", PointCloud2, VOLATILE, raw=True)
     clocks = fresh_graph.collect(topics.CLOCK, Clock, qos.CLOCK)
     fresh_graph.start("player", [
         "player", "--ros-args", "-p", f"bag:={path}", "-p", "rate:=2.0", "-p", "clock:=true",
@@ -80,7 +83,7 @@ def test_player_exits_when_done(fresh_graph, tmp_path):
     for i in range(10):
         writer.write("/note", serialize_message(String(data=f"n{i}")), 10**9 + i * 10**7)
     writer.close()
-    notes = fresh_graph.collect("/note", String, qos.EVENTS)
+    notes = fresh_graph.collect("/note", String, VOLATILE)
     proc = fresh_graph.start("player", ["player", "--ros-args", "-p", f"bag:={path}", "-p", "wait_for_subscribers_s:=10.0"])
     assert proc.popen.wait(30) == 0, proc.log()
     proc.stop()  # closes its log

@@ -15,7 +15,6 @@ from typing import Iterator, Optional, Tuple
 
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy
 from rosgraph_msgs.msg import Clock
 
 from tactile_bringup.bag_ros import adapted_qos, declare_checked, message_class, string_list_parameter
@@ -90,10 +89,9 @@ class PlayerNode(Node):
 
     # -- start -----------------------------------------------------------------
     def _wait_for_subscribers(self) -> None:
-        unmatched = [  # latched topics reach late subscribers anyway
-            t for t, pub in self._pubs.items()
-            if pub.get_subscription_count() == 0 and pub.qos_profile.durability != DurabilityPolicy.TRANSIENT_LOCAL
-        ]
+        # Every topic, durable ones too: the graph's event topics are TRANSIENT_LOCAL now, and a
+        # durable publisher's history (depth 1 here) would hand a late subscriber only the last event.
+        unmatched = [t for t, pub in self._pubs.items() if pub.get_subscription_count() == 0]
         waited_s = time.monotonic() - self._wait_started_s
         if unmatched and waited_s < self._p.wait_for_subscribers_s:
             return
