@@ -30,3 +30,18 @@ def ros_graph(tmp_path):
         print(f"ROS_DOMAIN_ID={lease.domain_id} exit codes: {codes}")
         print(graph.logs())
         lease.release()
+
+
+@pytest.fixture
+def domain_env():
+    """The environment for a script that starts a whole graph (scripts/explore.sh), on a private
+    ROS_DOMAIN_ID with localhost-only discovery; the domain is held for the test's duration."""
+    from tactile_common.testing import DomainLease
+
+    lease = DomainLease()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    try:
+        yield env
+    finally:
+        lease.release()

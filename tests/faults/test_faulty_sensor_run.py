@@ -9,14 +9,12 @@ sent to the controller passes the trajectory monitor.
 """
 
 import json
-import os
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tactile_common.testing import DomainLease
 from tactile_sim.objects import make_object
 
 from fault_helpers import commander_monitor
@@ -34,15 +32,6 @@ sim_rig:
       disconnect_at_s: 12.0
       disconnect_for_s: 0.5
 """
-
-
-@pytest.fixture
-def domain_env():
-    lease = DomainLease()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    yield env
-    lease.release()
 
 
 def _read(path: Path):

@@ -16,19 +16,9 @@ from pathlib import Path
 import pytest
 
 from tactile_bringup.report import check_report
-from tactile_common.testing import DomainLease
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
-
-
-@pytest.fixture
-def domain_env():
-    lease = DomainLease()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    yield env
-    lease.release()
 
 
 def _logs(out: Path) -> str:

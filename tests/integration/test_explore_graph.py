@@ -22,20 +22,10 @@ from tactile_bringup.loop import ExplorationLoop
 from tactile_bringup.report import check_report
 from tactile_common import topics
 from tactile_planner.planner import PARAMETERS as PLANNER_PARAMETERS
-from tactile_common.testing import DomainLease
 from tactile_sim.objects import make_object
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
-
-
-@pytest.fixture
-def domain_env():
-    lease = DomainLease()
-    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
-    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    yield env
-    lease.release()
 
 
 def _explore(env, out: Path, *args: str, timeout_s: float = 420) -> subprocess.CompletedProcess:

@@ -113,12 +113,17 @@ def make_stream(model, obj, tips, t0_s=10.0):
             for k, tip in enumerate(tips)]
 
 
-def test_pipeline_publishes_world_contact_only_with_a_pose():
+def wall_approach():
+    """A ring layout, the tips of 40 free frames then a slow approach to a wall at x = 0.51, their frames."""
     layout = ring_layout()
     model = SensorModel(layout, seed=0)
     wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
     tips = [[0.45, 0.0, 0.06]] * 40 + [[x, 0.0, 0.06] for x in np.linspace(0.499, 0.5006, 40)]
-    frames = make_stream(model, wall, tips)
+    return layout, tips, make_stream(model, wall, tips)
+
+
+def test_pipeline_publishes_world_contact_only_with_a_pose():
+    layout, tips, frames = wall_approach()
     # no pose at all: the onset is refused, and retried on every later frame
     drv = SensorDriver(layout)
     out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames)]
@@ -197,11 +202,7 @@ def test_frames_queued_during_a_disconnect_are_stale_after_the_reconnect():
 
 def test_a_waiting_contact_is_placed_with_the_pose_at_its_time_not_the_newest_one():
     """An onset newer than every pose waits; a later read must not place it with the newest pose."""
-    layout = ring_layout()
-    model = SensorModel(layout, seed=0)
-    wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
-    tips = [[0.45, 0.0, 0.06]] * 40 + [[x, 0.0, 0.06] for x in np.linspace(0.499, 0.5006, 40)]
-    frames = make_stream(model, wall, tips)
+    layout, tips, frames = wall_approach()
     drv = SensorDriver(layout)
     placed = []
     lag = 3  # poses arrive three frames late

@@ -26,7 +26,6 @@ inspection topic only and the task completes at once.
 from __future__ import annotations
 
 import enum
-import logging
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
