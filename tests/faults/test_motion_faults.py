@@ -147,6 +147,10 @@ def test_stale_or_invalid_joint_states_stop_motion_and_the_next_plan_starts_at_t
     g.wait_for(lambda: js_pub.get_subscription_count() and watch.states > 5 and watch.publishers and done.publishers,
                30, "commander")
     g.wait_for(lambda: "arm_commander ready" in g.procs["arm"].log(), 20, "the commander")
+    # The commander publishes a fingertip pose for every joint state it takes: once they flow, its
+    # watchdog is fed and a goal is planned (not refused for "no recent joint state").
+    n_poses = len(poses)
+    g.wait_for(lambda: len(poses) > n_poses + 5, 20, "the commander's fingertip poses")
     touches = Touches(g)
     touches.send(11)
     g.wait_for(lambda: watch.sent, 20, "the path trajectory")
