@@ -84,3 +84,12 @@ def test_old_runs_without_the_reachable_iou_still_summarise(tmp_path):
     md = (tmp_path / "out" / "summary.md").read_text()
     assert "carry no reachable IoU" in md and "| circle | proposed | 1 |" in md
     assert np.isfinite(benchmark._geomean([1.0, 2.0]))
+
+
+def test_ratios_are_taken_for_the_modes_default_strategy_when_it_was_run():
+    from tactile_bringup.benchmark import DEFAULT_STRATEGY, default_strategy
+
+    two = [{"mode": "2d", "strategy": s} for s in ("info_travel", "proposed", "sequential")]
+    assert default_strategy(two) == "info_travel"  # explore_2d / soc_planner.yaml
+    assert default_strategy([{"mode": "3d", "strategy": s} for s in ("info_travel", "proposed")]) == "proposed"
+    assert default_strategy([{"mode": "2d", "strategy": "proposed"}]) == DEFAULT_STRATEGY  # not run: the fallback

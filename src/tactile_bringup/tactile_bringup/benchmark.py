@@ -136,6 +136,17 @@ TARGET_IOU = 0.95
 _LEVELS = ("0.90", "0.95")
 
 
+def default_strategy(runs: Sequence[dict]) -> str:
+    """The strategy the ratios are for: the mode's default (2D info_travel, 3D proposed, from the
+    configuration files), when the runs hold it; else ``DEFAULT_STRATEGY``."""
+    have = {r["strategy"] for r in runs}
+    try:
+        mode_default = Experiment(mode=str(runs[0].get("mode", "2d"))).strategy
+    except (ValueError, KeyError, IndexError):
+        return DEFAULT_STRATEGY
+    return mode_default if mode_default in have else DEFAULT_STRATEGY
+
+
 def family_of(name: str) -> str:
     """A generated object's family (``gen2d-017-letter_H`` → ``letter_H``); ``builtin`` otherwise."""
     from tactile_sim.generated import is_generated_name, parse_name
@@ -278,12 +289,13 @@ def reachable_sections(runs: Sequence[dict]) -> str:
     """The reachable-IoU part of summary.md (empty note for runs without it)."""
     if not has_reachable(runs):
         return "## Reachable IoU\n\nThese runs carry no reachable IoU (written before it existed).\n"
+    default = default_strategy(runs)
     return (f"## Reachable IoU: whole suite\n\nIoU against the finger-reachable solid (the true solid closed by "
             f"a ball of the tip radius; in 3D counted above the lowest tip-centre height).\n\n"
             f"{reachable_overall_table(runs)}\n*censored: a run that never reached the level counts with its "
             f"whole travel/time.\n\n"
-            f"### Reachable IoU: {DEFAULT_STRATEGY} against the baselines (geometric mean over objects)\n\n"
-            f"{ratio_table(runs)}\n"
+            f"### Reachable IoU: {default} against the baselines (geometric mean over objects)\n\n"
+            f"{ratio_table(runs, default)}\n"
             f"### Reachable IoU: per family (medians over objects of the medians over seeds)\n\n{family_table(runs)}\n"
             f"### Objects ending below reachable IoU {TARGET_IOU:.2f} (median over seeds)\n\n{below_target(runs)}\n"
             f"### Reachable IoU: per object (medians over seeds)\n\n{reachable_object_table(runs)}")
