@@ -52,12 +52,8 @@ def evaluation_lattice(bounds: np.ndarray, resolution_m: float) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
 
 
-def iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> float:
-    """Intersection over union of the estimate and the true object on lattice points.
-
-    ``inside_est`` maps the (M, k) lattice points to a boolean (M,) array;
-    the object is evaluated on their first ``obj.dim`` columns. Both empty → 1.
-    """
+def _estimate_on(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (M, k) lattice points as floats and the estimate's boolean (M,) inside test on them (checked)."""
     pts = np.asarray(lattice_points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] < obj.dim:
         raise ValueError(f"lattice_points must be (M, >= {obj.dim}), got shape {pts.shape}")
@@ -65,6 +61,16 @@ def iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> f
     if est.shape != (len(pts),):
         raise ValueError(f"inside_est returned shape {est.shape}, expected ({len(pts)},)")
     est = est.astype(bool)
+    return pts, est
+
+
+def iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> float:
+    """Intersection over union of the estimate and the true object on lattice points.
+
+    ``inside_est`` maps the (M, k) lattice points to a boolean (M,) array;
+    the object is evaluated on their first ``obj.dim`` columns. Both empty → 1.
+    """
+    pts, est = _estimate_on(inside_est, obj, lattice_points)
     true = true_inside(obj, pts)
     union = np.count_nonzero(est | true)
     return 1.0 if union == 0 else np.count_nonzero(est & true) / union
@@ -209,13 +215,7 @@ def reachable_iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.nda
     radius — is left out of both solids: the finger never senses it).
     Both empty → 1.
     """
-    pts = np.asarray(lattice_points, dtype=float)
-    if pts.ndim != 2 or pts.shape[1] < obj.dim:
-        raise ValueError(f"lattice_points must be (M, >= {obj.dim}), got shape {pts.shape}")
-    est = np.asarray(inside_est(pts))
-    if est.shape != (len(pts),):
-        raise ValueError(f"inside_est returned shape {est.shape}, expected ({len(pts)},)")
-    est = est.astype(bool)
+    pts, est = _estimate_on(inside_est, obj, lattice_points)
     true = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m)
     if obj.dim == 3:
         counted = pts[:, 2] >= float(min_tip_z_m)
