@@ -67,5 +67,5 @@ def test_export_files(tmp_path):
     assert head[0] == "ply" and f"element face {len(ls.elements)}" in head
     stl = export_level_set(tmp_path / "s.stl", ls, 3)
     assert stl.stat().st_size == 84 + 50 * len(ls.elements)
-    with pytest.raises(ValueError, match="use .csv in 2D"):
-        export_level_set(tmp_path / "s.obj", ls, 3)
+    with pytest.raises(ValueError, match="use .csv, .ply or .obj in 2D"):
+        export_level_set(tmp_path / "s.vtk", ls, 3)

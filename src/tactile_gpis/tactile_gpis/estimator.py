@@ -28,7 +28,7 @@ from tactile_common.fields import (
     VARIANCE_MAP_DTYPE,
 )
 
-from .export import export_level_set
+from .export import export_level_set, write_observations_ply
 from .gp import GPIS, FactorError
 from .kernels import KERNEL_TYPES, make_kernel
 from .local import LocalGPIS
@@ -173,7 +173,9 @@ class ShapeEstimator:
         return cls(params)
 
     def _prior(self, p: Mapping[str, Any]):
+        """The prior mean function; sets ``prior_sphere`` ((centre (dim,), radius) in metres, or None)."""
         kind = str(p["prior.type"])
+        self.prior_sphere: Optional[tuple[np.ndarray, float]] = None
         if kind == "none":
             return zero_mean
         if kind == "auto":
@@ -181,12 +183,14 @@ class ShapeEstimator:
             centre, radius = 0.5 * (lo + hi), 0.25 * float((hi - lo).min())
             if self.dim == 3:  # the object stands on the table: the prior sphere rests on z = min z
                 centre[2] = lo[2] + radius
+            self.prior_sphere = (centre, radius)
             return sphere_mean(centre, radius)
         if kind == "given":
             c = np.asarray(p["prior.centre_m"], float)
             if c.shape != (3,):
                 raise ValueError("prior.centre_m must be 3 numbers (x, y, z)")
-            return sphere_mean(c[: self.dim], float(p["prior.radius_m"]))
+            self.prior_sphere = (c[: self.dim], float(p["prior.radius_m"]))
+            return sphere_mean(*self.prior_sphere)
         raise ValueError(f"prior.type must be 'auto', 'given' or 'none', got '{kind}'")
 
     # -- state ---------------------------------------------------------------
@@ -201,6 +205,7 @@ class ShapeEstimator:
                 self.gp.set_eval_points(self._lattice)
             self.local = None
         self._obs: list[tuple] = []  # accepted GP observations (x, value, var, normal, normal var)
+        self._inputs: list[tuple] = []  # the accepted add_observation arguments (point, normal, label, var)
         self._version = 0
         self._points = np.zeros((0, self.dim))
         self.n_observations = 0
@@ -256,6 +261,9 @@ class ShapeEstimator:
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
         self._obs.append(obs)
+        normal = np.full(3, np.nan) if normal_xyz is None else np.asarray(normal_xyz, float).ravel()
+        self._inputs.append((pt, normal if normal.shape == (3,) else np.full(3, np.nan), int(label),
+                             np.nan if value_var_m2 is None else float(value_var_m2)))
         self._points = np.vstack([self._points, x])
         self.n_observations += 1
         self._version += 1
@@ -359,9 +367,32 @@ class ShapeEstimator:
         """The variance map: lattice nodes (kind 0, C order) then candidates (kind 1)."""
         return self._map_and_level_set()[1].copy()
 
+    def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The accepted observations in the order added, as given to :meth:`add_observation`
+        (world frame, metres): points (N, 3), normals (N, 3; NaN where none was given),
+        labels (N,) int, value noise variances (N,) m^2 (NaN: the parameter's default).
+        Adding them in this order to an estimator of the same parameters rebuilds this one."""
+        if not self._inputs:
+            return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, dtype=int), np.zeros(0)
+        pts, nrm, lab, var = zip(*self._inputs)
+        return np.array(pts), np.array(nrm), np.array(lab, dtype=int), np.array(var, dtype=float)
+
     def export_shape(self, path: str | Path) -> Path:
-        """Write the estimated shape: .csv contour (2D), .ply / .stl mesh (3D)."""
-        return export_level_set(path, self.level_set(), self.dim)
+        """Write the estimated shape by extension (world frame, metres): .csv contour (2D),
+        .ply (2D polyline / 3D mesh, with the GP posterior variance of f at each vertex),
+        .obj (2D polyline / 3D mesh), .stl (3D mesh)."""
+        ls = self.level_set()
+        variance = None
+        if Path(path).suffix.lower() == ".ply":
+            variance = self.predict(ls.vertices)[1] if len(ls.vertices) else np.zeros(0)
+        return export_level_set(path, ls, self.dim, variance=variance, plane_z_m=self.plane_z_m)
+
+    def export_observations(self, path: str | Path) -> Path:
+        """Write the accepted observations as a PLY point cloud (x y z nx ny nz label,
+        world frame, metres; label 1 contact, 0 free space; normal 0 where none)."""
+        pts, nrm, lab, _ = self.observations()
+        write_observations_ply(Path(path), pts, nrm, lab)
+        return Path(path)
 
     # -- map -----------------------------------------------------------------
     def _to_xyz(self, P: np.ndarray) -> np.ndarray:
