@@ -124,8 +124,16 @@ class McapBagWriter:
         w.write("/chatter", cdr_bytes, log_time_ns, publish_time_ns)
         w.close()
 
+    A write that fails (disk full, file size limit, I/O error) raises ``OSError`` and
+    leaves the writer *failed* (``error`` holds the first error): every later
+    :meth:`write` and :meth:`flush` raises at once, and :meth:`close` only closes the
+    file, so nothing is appended after the partial record. The chunks completed
+    before the error stay readable (:func:`recover`).
+
     Raises:
         FileExistsError: ``path`` exists (never overwrites a recording).
+        FileNotFoundError: the directory of ``path`` does not exist or is not a directory.
+        PermissionError: the file cannot be created (read-only directory, ...).
         ValueError: unknown compression or a non-positive chunk size.
     """
 
@@ -137,9 +145,14 @@ class McapBagWriter:
             raise ValueError(f"chunk size must be positive, got {chunk_size_bytes}")
         if self.path.exists():
             raise FileExistsError(f"refusing to overwrite existing recording '{self.path}'")
-        if not self.path.parent.is_dir():
-            raise FileNotFoundError(f"output directory '{self.path.parent}' does not exist")
-        self._stream = open(self.path, "xb")
+        parent = self.path.parent
+        if not parent.is_dir():
+            what = "is not a directory" if parent.exists() else "does not exist"
+            raise FileNotFoundError(f"output directory '{parent}' {what}")
+        try:
+            self._stream = open(self.path, "xb")
+        except OSError as exc:  # read-only directory or file system, no space, ...
+            raise PermissionError(f"cannot create the recording '{self.path}': {exc.strerror or exc}") from None
         self._writer = Writer(self._stream, chunk_size=chunk_size_bytes, compression=COMPRESSIONS[compression])
         self._writer.start(profile=PROFILE, library=LIBRARY)
         self._stream.flush()
@@ -148,6 +161,7 @@ class McapBagWriter:
         self._stats = _Stats()
         self._pending = 0  # messages not yet in a written chunk
         self._closed = False
+        self.error: Optional[OSError] = None  # the first failed write; the file ends at the last chunk before it
 
     # -- topics ----------------------------------------------------------------
     def add_topic(
@@ -177,28 +191,56 @@ class McapBagWriter:
 
     # -- messages --------------------------------------------------------------
     def write(self, topic: str, data: bytes, log_time_ns: int, publish_time_ns: Optional[int] = None) -> None:
-        """Append one serialized (CDR) message; a completed chunk goes to disk at once."""
+        """Append one serialized (CDR) message; a completed chunk goes to disk at once.
+
+        Raises:
+            OSError: the file cannot be written (the writer is failed from then on).
+        """
         record = self.topics[topic]
-        before = self._stream.tell()
-        self._writer.add_message(
-            channel_id=record.channel_id,
-            log_time=int(log_time_ns),
-            data=bytes(data),
-            publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
-            sequence=record.message_count,
-        )
-        record.message_count += 1
-        self._stats.add(int(log_time_ns))
-        self._pending += 1
-        if self._stream.tell() != before:  # a chunk was completed: make it durable now
-            self._stream.flush()
-            self._pending = 0
+        self._check_failed()
+        try:
+            before = self._stream.tell()
+            self._writer.add_message(
+                channel_id=record.channel_id,
+                log_time=int(log_time_ns),
+                data=bytes(data),
+                publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
+                sequence=record.message_count,
+            )
+            record.message_count += 1
+            self._stats.add(int(log_time_ns))
+            self._pending += 1
+            if self._stream.tell() != before:  # a chunk was completed: make it durable now
+                self._stream.flush()
+                self._pending = 0
+        except OSError as exc:
+            self.error = exc
+            raise
 
     def flush(self) -> None:
-        """Close the chunk in progress (if it has messages) and write it to disk."""
+        """Close the chunk in progress (if it has messages) and write it to disk.
+
+        Raises:
+            OSError: the file cannot be written (the writer is failed from then on).
+        """
+        self._check_failed()
         if self._pending:
-            self._writer.flush()
+            try:
+                self._writer.flush()
+                self._stream.flush()
+            except OSError as exc:
+                self.error = exc
+                raise
             self._pending = 0
+
+    @property
+    def pending(self) -> int:
+        """Messages in the chunk in progress (not yet on disk)."""
+        return self._pending
+
+    def _check_failed(self) -> None:
+        if self.error is not None:
+            raise OSError(self.error.errno, f"the recording stopped at an earlier error: {self.error.strerror or self.error}")
 
     @property
     def message_count(self) -> int:
@@ -245,10 +287,34 @@ class McapBagWriter:
         }
 
     def close(self) -> None:
-        """Write the last chunk, the ``rosbag2`` metadata record and the summary; close the file."""
+        """Write the last chunk, the ``rosbag2`` metadata record and the summary; close the file.
+
+        A failed writer only closes the file (it ends with the chunks written before the
+        error, readable with :func:`recover`).
+
+        Raises:
+            OSError: finalising failed (the file is closed; the completed chunks stay readable).
+        """
         if self._closed:
             return
         self._closed = True
+        if self.error is not None:
+            try:
+                self._stream.close()  # may try to write what the buffer holds again
+            except OSError:
+                pass
+            return
+        try:
+            self._finish()
+        except OSError as exc:
+            self.error = exc
+            try:
+                self._stream.close()
+            except OSError:
+                pass
+            raise
+
+    def _finish(self) -> None:
         self._writer.add_metadata("rosbag2", {
             "serialized_metadata": yaml.safe_dump(self.bag_metadata(), sort_keys=False),
             "ROS_DISTRO": ROS_DISTRO,
