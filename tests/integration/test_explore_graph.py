@@ -37,11 +37,27 @@ def _logs(out: Path) -> str:
     return "\n".join(f"--- {p.name}\n{p.read_text()[-3000:]}" for p in sorted((out / "logs").glob("*.log")))
 
 
-def test_graph_run_records_reports_and_replays_offline(domain_env, tmp_path):
-    out = tmp_path / "run"
+KIDNEY = ("--object", "kidney", "--touches", "10", "--seed", "2")
+
+
+@pytest.fixture(scope="module")
+def kidney_run(tmp_path_factory):
+    """One uninterrupted default-strategy run (kidney, seed 2, 10 touches): its folder and result."""
+    from tactile_common.testing import DomainLease
+
+    lease = DomainLease()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    out = tmp_path_factory.mktemp("kidney") / "run"
+    try:
+        yield out, _explore(env, out, *KIDNEY, "--real-time-factor", "2")
+    finally:
+        lease.release()
+
+
+def test_graph_run_records_reports_and_replays_offline(domain_env, kidney_run):
+    out, result = kidney_run
     touches = 10
-    result = _explore(domain_env, out, "--object", "kidney", "--touches", str(touches), "--seed", "2",
-                      "--real-time-factor", "2")
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:] + _logs(out)
     assert "touch  10/10" in result.stdout + result.stderr, "progress is printed per touch"
     for name in ("run.mcap", "report.json", "progress.png", "shape.csv"):
@@ -90,35 +106,72 @@ def test_graph_run_records_reports_and_replays_offline(domain_env, tmp_path):
     assert np.allclose(offline["touches"][0]["target"], report["touches"][0]["target"], atol=1e-6)
 
 
-def test_ctrl_c_stops_every_node_and_keeps_the_report(domain_env, tmp_path):
+def test_ctrl_c_keeps_the_report_and_resume_completes_the_run(domain_env, tmp_path, kidney_run):
+    """Ctrl-C after touch 5 of 10 stops every node and keeps the report; ``--resume`` continues
+    the run from its recorded observations into the same folder, and the whole run compares with
+    an uninterrupted run of the same seed."""
     out = tmp_path / "run"
-    proc = subprocess.Popen(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), "--touches", "30"],
+    proc = subprocess.Popen(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), *KIDNEY],
                             env=domain_env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             stdin=subprocess.DEVNULL, start_new_session=True)
     try:
-        deadline = time.monotonic() + 240
+        deadline = time.monotonic() + 300
         log = out / "logs" / "explorer.log"
-        while time.monotonic() < deadline:  # wait for the first finished touch
-            if log.exists() and "touch   1/30" in log.read_text():
+        while time.monotonic() < deadline:  # wait for the fifth finished touch
+            if log.exists() and "touch   5/10" in log.read_text():
                 break
             assert proc.poll() is None, proc.stdout.read()
             time.sleep(0.2)
         else:
-            pytest.fail("no touch finished within 240 s\n" + _logs(out))
+            pytest.fail("5 touches did not finish within 300 s\n" + _logs(out))
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in the terminal sends
         output, _ = proc.communicate(timeout=90)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, output[-3000:]
-    report = json.loads((out / "report.json").read_text())
-    assert report["summary"]["stopped_because"] == "interrupted" and len(report["touches"]) >= 1
+    cut = json.loads((out / "report.json").read_text())
+    assert cut["summary"]["stopped_because"] == "interrupted" and 5 <= len(cut["touches"]) < 10
     from mcap.reader import make_reader
 
     with open(out / "run.mcap", "rb") as fh:  # finalised: the summary section is there
         assert make_reader(fh).get_summary().statistics.message_count > 0
     left = subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split()
     assert left == [], f"processes left behind: {left}"
+
+    # A resume may not change what the run is.
+    refused = subprocess.run(["bash", str(ROOT / "scripts/explore.sh"), "--resume", str(out), "--seed", "3"],
+                             env=domain_env, capture_output=True, text=True, timeout=60)
+    assert refused.returncode == 2 and "--resume continues a run with its own" in refused.stderr
+
+    resumed = subprocess.run(["bash", str(ROOT / "scripts/explore.sh"), "--resume", str(out)], env=domain_env,
+                             capture_output=True, text=True, timeout=420, stdin=subprocess.DEVNULL)
+    assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:] + _logs(out / "logs" / "resume1")
+    assert (out / "run.resume1.mcap").stat().st_size > 0 and "run.resume1.mcap" in resumed.stdout
+    whole = json.loads((out / "report.json").read_text())
+    check_report(whole)
+    assert whole["summary"]["stopped_because"] == "touch budget" and len(whole["touches"]) == 10
+    # The touches before the cut are the ones the interrupted run reported (rebuilt from its recording).
+    for before, after in zip(cut["touches"], whole["touches"]):
+        for key in ("index", "target", "contact", "normal", "outcome"):
+            assert before[key] == after[key], (key, before, after)
+        for key in ("travel_m", "time_s", "iou"):
+            assert after[key] == pytest.approx(before[key], abs=1e-9), (key, before, after)
+    # Travel and time go on from where they were; the resumed session starts at the start position.
+    n = len(cut["touches"])
+    assert whole["touches"][n]["travel_m"] > cut["touches"][-1]["travel_m"]
+    # The same seed uninterrupted: the same budget and about the same estimate at the end.
+    k_out, k_result = kidney_run
+    assert k_result.returncode == 0, k_result.stderr[-2000:]
+    straight = json.loads((k_out / "report.json").read_text())
+    assert len(straight["touches"]) == len(whole["touches"])
+    assert whole["summary"]["final_iou"] == pytest.approx(straight["summary"]["final_iou"], abs=0.05)
+    # The recordings of both sessions re-analyse to the resumed run's final estimate.
+    re = subprocess.run(["bash", str(ROOT / "scripts/replay.sh"), str(out / "run.mcap"), "--offline"],
+                        env=domain_env, capture_output=True, text=True, timeout=300)
+    assert re.returncode == 0 and "2 sessions" in re.stdout, re.stdout + re.stderr
+    again = json.loads((out / "reanalysis" / "report.json").read_text())
+    assert again["summary"]["final_iou"] == pytest.approx(whole["summary"]["final_iou"], abs=1e-12)
 
 
 def test_bad_choices_fail_before_any_node_starts(domain_env, tmp_path):

@@ -33,6 +33,7 @@ from tactile_common import qos, topics
 from tactile_common.cycle import PlanRequest
 from tactile_common.cycle_msgs import answer_from_msg, report_from_msg, request_msg
 from tactile_common.node_main import run_node
+from tactile_common.observations_file import read_observations
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_ns
@@ -41,6 +42,7 @@ from tactile_driver.arm_msgs import path_xyz
 from .experiment import Experiment
 from .exploration_cycle import CycleConfig, ExplorationCycle
 from .progress import RunRecorder
+from .resume import load_bundle
 
 
 PARAMS = {
@@ -55,6 +57,8 @@ PARAMS = {
     "observation_timeout_s": (10.0, "a touch whose observation does not arrive: re-issue it (wall clock)", {"gt": 0.0}),
     "max_retries": (3, "re-sent requests / re-issued touches in a row before the run ends", {"ge": 0}),
     "max_unreachable": (10, "stop after this many unreachable goals in a row", {"ge": 1}),
+    "resume_from": ("", "continue a run: its resume bundle (explore.sh --resume, tactile_bringup.resume); "
+                    "'' = a new run"),
     **Experiment.RUN_PARAMETERS,  # touches, budgets, start position: read from the files, declared to show them
 }
 
@@ -69,6 +73,12 @@ class ExplorerNode(Node):
         # The files already hold the overrides (object, strategy, seed, touches).
         self.exp = Experiment.from_files(p.mode, files)
         self.run = RunRecorder(self.exp, Path(p.out_dir), evaluate=p.evaluate)
+        if p.resume_from:
+            report, observations_file = load_bundle(Path(p.resume_from))
+            observations = read_observations(observations_file)
+            self.run.restore(report, observations)
+            self.get_logger().info(f"resumed after {len(self.run.touches)} touches ({len(observations)} "
+                                   f"observations, travel {self.run.travel_m:.2f} m) from {p.resume_from}")
         cfg = CycleConfig(**{k: getattr(p, k) for k in CycleConfig.__dataclass_fields__})
         self.pub_request = self.create_publisher(DiagnosticStatus, topics.REQUEST, qos.EVENTS)
         self.cycle = ExplorationCycle(cfg, self.exp.start_tip_xyz, self.run, self.send_request, time.monotonic,

@@ -7,6 +7,9 @@ parameter tables (values, names, contradictions; see
 files every node gets, one per line, in order. ``replay`` (scripts/replay.sh):
 check the player's options and any ``--params`` files. Both exit 2 with one
 line per problem before anything is started or written.
+``resume`` (explore.sh --resume): rebuild an interrupted run and write the next
+session's bundle (:mod:`tactile_bringup.resume`); prints ``<session> <mode> <rig>``,
+then the files every node gets, one per line.
 ``wait-joint-states``: exit 0 once /joint_states delivers a message, 1 after
 the timeout (the real rig's check).
 """
@@ -28,7 +31,7 @@ from .param_checks import ParamsError, check_cli_values, check_files
 def plan(args: argparse.Namespace) -> int:
     check_cli_values({"--real-time-factor": args.real_time_factor})
     exp = Experiment(mode=args.mode, object_name=args.object, strategy=args.strategy, alpha=args.alpha,
-                     seed=args.seed, touches=args.touches, user_params_files=args.params)
+                     seed=args.seed, touches=args.touches, user_params_files=args.params, touch=args.touch)
     if args.rig == "sim":
         from tactile_sim.objects import make_object
 
@@ -46,6 +49,17 @@ def plan(args: argparse.Namespace) -> int:
     for path in copies:
         print(path.resolve())
     print(f"{exp.object_name} {exp.mode} {exp.strategy} seed {exp.seed}, {exp.touches} touches", file=sys.stderr)
+    return 0
+
+
+def resume(args: argparse.Namespace) -> int:
+    from .resume import prepare
+
+    check_cli_values({"--touches": args.touches, "--real-time-factor": args.real_time_factor})
+    plan = prepare(Path(args.out), args.touches)
+    print(f"{plan.session} {plan.mode} {plan.rig}")
+    for path in plan.params_files:
+        print(path)
     return 0
 
 
@@ -74,6 +88,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     r.add_argument("--wait", type=finite_float, default=None)
     r.add_argument("--linger", type=finite_float, default=None)
     r.add_argument("--params", action="append", default=[])
+    s = sub.add_parser("resume", prog="explore.sh --resume", help="rebuild a run and prepare its next session")
+    s.add_argument("--out", required=True)
+    s.add_argument("--touches", type=int, default=None)
+    s.add_argument("--real-time-factor", type=finite_float, default=None)
     w = sub.add_parser("wait-joint-states", help="wait for /joint_states (real rig check)")
     w.add_argument("--timeout", type=finite_float, default=10.0)
     args = parser.parse_args(argv)
@@ -81,6 +99,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return run_main(lambda: plan(args))
     if args.cmd == "replay":
         return run_main(lambda: replay(args))
+    if args.cmd == "resume":
+        return run_main(lambda: resume(args))
     return wait_joint_states(args.timeout)
 
 

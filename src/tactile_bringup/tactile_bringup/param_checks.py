@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: node name -> the (module, attribute) tables its parameters come from.
 NODE_TABLES: dict[str, tuple[tuple[str, str], ...]] = {
-    "gpis_estimator": (("tactile_gpis.estimator", "PARAMETERS"),),
+    "gpis_estimator": (("tactile_gpis.estimator", "PARAMETERS"), ("tactile_gpis.node", "NODE_PARAMETERS")),
     "soc_planner": (("tactile_planner.planner", "PARAMETERS"), ("tactile_planner.planner", "NODE_PARAMETERS")),
     "tactile_sensor": (("tactile_driver.sensor_node", "PARAMS"),),
     "arm_commander": (("tactile_driver.commander_node", "PARAMS"),),

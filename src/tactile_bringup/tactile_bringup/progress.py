@@ -148,6 +148,18 @@ class RunRecorder:
         self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01)) + \
             float(experiment.planner_params.get("tip_radius_m", 0.01))
 
+    def restore(self, report: dict, observations: np.ndarray) -> None:
+        """Continue a run (``explore.sh --resume``): its touch records and totals so far
+        (``report`` with its ``resume`` entry, :mod:`tactile_bringup.resume`) and every
+        observation its estimate took (CONTACT_DTYPE, in order)."""
+        for obs in observations:
+            observe(self.estimator, np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
+                    np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float),
+                    int(obs["label"]) == LABEL_CONTACT)
+        self.touches = list(report["touches"])
+        self.travel_m = float(report["resume"]["travel_m"])
+        self.time_s = float(report["resume"]["time_s"])
+
     def add_travel(self, travel_m: float, time_s: float) -> None:
         """Motion that produced no observation (an aborted or unreachable goal)."""
         self.travel_m += travel_m

@@ -30,6 +30,7 @@ from visualization_msgs.msg import Marker
 from tactile_common import qos, topics
 from tactile_common.fields import CONTACT_DTYPE, normals, xyz
 from tactile_common.node_main import run_node
+from tactile_common.observations_file import read_observations
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2, to_pointcloud2
 from tactile_common.stamps import stamp_ns
@@ -40,12 +41,19 @@ from .ros_convert import occupancy_grid, surface_marker
 #: Most points accepted in one contacts message (the contract is one point per touch).
 MAX_CLOUD_POINTS = 16
 
+#: The node's own parameters (the estimate's are ``PARAMETERS``).
+NODE_PARAMETERS = {
+    "initial_observations_file": ("", "observations to start from (a resumed run, tactile_common."
+                                  "observations_file CSV); '' = the prior"),
+}
+
 
 class GpisEstimatorNode(Node):
     def __init__(self) -> None:
         super().__init__("gpis_estimator")
         values = vars(declare_parameters(self, PARAMETERS))
         self.estimator = ShapeEstimator.from_params({k: values[k.replace(".", "_")] for k in PARAMETERS})
+        initial = str(declare_parameters(self, NODE_PARAMETERS).initial_observations_file)
         self.frame_id = str(values["frame_id"])
         self.n_received = 0
         self.n_rejected = 0
@@ -57,6 +65,8 @@ class GpisEstimatorNode(Node):
         self.occupancy_pub = (
             self.create_publisher(OccupancyGrid, topics.OCCUPANCY, qos.MAP) if self.estimator.dim == 2 else None
         )
+        if initial:
+            self.add_initial(initial)
         self.create_subscription(PointCloud2, topics.CONTACTS, self.on_contacts, qos.OBSERVATIONS)
         self.create_service(Trigger, "~/reset", self.on_reset)
         self.publish_estimate()
@@ -64,6 +74,14 @@ class GpisEstimatorNode(Node):
             f"{self.estimator.dim}D GPIS, lattice {self.estimator.lattice_shape}, "
             f"kernel {self.estimator.kernel.name}: prior map published"
         )
+
+    def add_initial(self, path: str) -> None:
+        """Start from a run's observations (a resumed run); a bad file ends the node with one line."""
+        obs = read_observations(path)
+        rejected = [reason for p, n, label in zip(xyz(obs), normals(obs), obs["label"])
+                    for ok, reason in [self.estimator.add_observation(p, n, int(label))] if not ok]
+        self.get_logger().info(f"started from {len(obs) - len(rejected)} observations of {path}"
+                               + (f" ({len(rejected)} rejected: {rejected[0]})" if rejected else ""))
 
     def on_contacts(self, msg: PointCloud2) -> None:
         self.n_received += 1
