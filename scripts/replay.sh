@@ -4,16 +4,19 @@
 #   scripts/replay.sh run.mcap [--rate X] [--topics /a /b ...] [--loop] [--clock]
 #                              [--wait S] [--linger S] [-- extra --ros-args ...]
 #   scripts/replay.sh run.mcap --offline [--params FILE]... [--out DIR]
+#   scripts/replay.sh estimate.json --offline [--params FILE]... [--out DIR]
 #
 # Publishes the recorded messages at their recorded timing (scaled by --rate)
 # with their recorded QoS (latched topics stay latched); --clock also
 # publishes /clock from the recorded times. Discovery stays on this host
 # (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless you set another value.
 # --offline starts no graph: it rebuilds the estimate from the recorded
-# contacts with the run's parameters (plus --params) and rewrites the report.
+# contacts with the run's parameters (plus --params) and rewrites the report;
+# given a saved estimate (estimate.json of a run folder) it rebuilds that estimate
+# (--params: other gpis_estimator parameters), measures and exports it.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
-usage() { sed -n '2,13p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,16p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 die() { echo "replay.sh: error: $*" >&2; exit 2; }
 
 [ $# -ge 1 ] || { usage >&2; exit 2; }
@@ -38,6 +41,7 @@ while [ $# -gt 0 ]; do
   esac
 done
 [ -f "$BAG" ] || die "recording '$BAG' not found"
+case "$BAG" in *.json) [ "$OFFLINE" = true ] || die "'$BAG' is a saved estimate, not a recording: use --offline" ;; esac
 
 "$ROOT/scripts/setup.sh"
 # shellcheck disable=SC1091
@@ -55,6 +59,7 @@ python -m tactile_bringup.launch_plan replay "${check[@]}" || exit 2
 as_double() { case "$1" in *.*|*e*|*E*) echo "$1" ;; *) echo "$1.0" ;; esac; }
 RATE="$(as_double "$RATE")"; WAIT="$(as_double "$WAIT")"; LINGER="$(as_double "$LINGER")"
 if [ "$OFFLINE" = true ]; then  # no graph: rebuild the estimate and the report from the recording
+  case "$BAG" in *.json) exec python -m tactile_bringup.state_replay "$BAG" "${PARAMS[@]}" ;; esac
   exec python -m tactile_bringup.reanalyse "$BAG" "${PARAMS[@]}"
 fi
 

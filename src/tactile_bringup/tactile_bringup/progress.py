@@ -2,8 +2,8 @@
 
 A touch record is one entry of the report's ``touches`` list
 (:mod:`tactile_bringup.report`); the outputs of a run are ``report.json``,
-``progress.png`` and the estimated shape (``shape.csv`` in 2D,
-``shape.ply`` in 3D).
+``progress.png`` and the exports (:mod:`tactile_bringup.exports`: the estimated
+shape, ``contacts.ply``, ``estimate.json``).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from tactile_common.rotations import quaternion_x_axis, xyzw
 from . import plots
 from .cores import make_estimator
 from .evaluation import Evaluator
+from .exports import run_description, write_exports
 from .report import check_report, make_report, write_report
 
 _LOG = logging.getLogger("tactile_bringup.progress")
@@ -110,7 +111,8 @@ def stop_reason(experiment, touches: list) -> Optional[str]:
 
 def write_outputs(report: dict, estimator, evaluator: Optional[Evaluator], out_dir: Path,
                   mode: str) -> list[str]:
-    """report.json, progress.png and shape.csv|ply into ``out_dir``; the paths written."""
+    """report.json, progress.png and the exports (:mod:`tactile_bringup.exports`: shape files,
+    contacts.ply, estimate.json) into ``out_dir``; the paths written."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     check_report(report)
@@ -118,10 +120,7 @@ def write_outputs(report: dict, estimator, evaluator: Optional[Evaluator], out_d
     write_report(report, out_dir / "report.json")
     written.append(str(out_dir / "report.json"))
     surface = estimator.surface_points()
-    if len(surface):
-        shape = out_dir / ("shape.csv" if mode == "2d" else "shape.ply")
-        estimator.export_shape(shape)
-        written.append(str(shape))
+    written += write_exports(estimator, out_dir, mode, run_description(report))
     try:  # a figure that fails must not cost the run its report and shape (written above)
         plots.plot_progress(report, out_dir / "progress.png", surface,
                             evaluator.true_surface if evaluator else None, estimator=estimator,
@@ -166,10 +165,18 @@ class RunRecorder:
         self.time_s += time_s
 
     def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float,
-                  path_xyz=None) -> dict:
+                  path_xyz=None, slide=None) -> dict:
         """Record a finished touch: its goal pose message and its observation point
-        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure)."""
+        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure).
+        ``slide`` (a :class:`tactile_bringup.slide_stream.GraphSlide`): the estimate takes its
+        whole stream in order, ``observation`` (its last contact) last."""
+        from .slide_stream import free_path
+
         self.add_travel(travel_m, time_s)
+        path_xyz = free_path(path_xyz, goal)  # without a slide goal's marker
+        for obs in (slide.observations[:-1] if slide is not None else []):
+            observe(self.estimator, np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
+                    np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float), True)
         contact = int(observation["label"]) == LABEL_CONTACT
         point = np.array([observation["x"], observation["y"], observation["z"]], dtype=float)
         normal = np.array([observation["normal_x"], observation["normal_y"], observation["normal_z"]])
@@ -179,7 +186,7 @@ class RunRecorder:
             target = np.array([p.x, p.y, p.z]) + self.standoff_m * quaternion_x_axis(xyzw(goal.pose.orientation))
         observe(self.estimator, point, normal, contact)
         record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
-                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz)
+                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz, slide=slide)
         self.touches.append(record)
         return record
 
