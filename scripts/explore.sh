@@ -180,7 +180,7 @@ on_signal() {
 summary() {
   echo "run folder: $run_dir"
   local f
-  for f in "$run_dir"/run.mcap "$run_dir"/run.*.mcap "$run_dir"/{report.json,progress.png,shape.csv,shape.ply}; do
+  for f in "$run_dir"/run.mcap "$run_dir"/run.*.mcap "$run_dir"/{report.json,progress.png,shape.csv,shape.ply,shape.stl,shape.obj,contacts.ply,estimate.json}; do
     [ -e "$f" ] && echo "  $(basename "$f")"
   done
   return 0
