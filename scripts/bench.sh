@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Benchmarks: scripts/bench.sh gpis|planner|arm|explore|strategies|runs [args...]
+# Benchmarks: scripts/bench.sh gpis|planner|arm|explore|strategies|runs|soak [args...]
 # Each prints ratios measured in one run; --json FILE writes the figures too.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -32,5 +32,7 @@ case "$what" in
     done
     echo "$ok/$n graph runs completed their touch budget (runs in $dir)"
     [ "$ok" = "$n" ] ;;
-  *) echo "usage: scripts/bench.sh gpis|planner|arm|explore|strategies|runs [options]  (--help for each)" >&2; exit 2 ;;
+  soak)    # long 2D and 3D graph runs: RSS per node, MCAP size, decision time per touch (docs/reliability.md)
+    TACTILE_ROOT="$ROOT" exec python -m tactile_bringup.soak "$@" ;;
+  *) echo "usage: scripts/bench.sh gpis|planner|arm|explore|strategies|runs|soak [options]  (--help for each)" >&2; exit 2 ;;
 esac
