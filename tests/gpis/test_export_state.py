@@ -176,6 +176,7 @@ def test_state_round_trip_reproduces_mean_and_variance(tmp_path, params):
     loaded, doc = load_state(path)
     assert doc["run"] == {"object": "test"} and doc["model"]["dim"] == est.dim
     assert loaded.n_observations == est.n_observations and loaded.active_method == est.active_method
+    assert loaded.n_rejected == est.n_rejected == 1
     Q = rng.uniform(est.bounds_m[0], est.bounds_m[1], (200, est.dim))  # not the file's check points
     m0, v0 = est.predict(Q)
     m1, v1 = loaded.predict(Q)
@@ -188,6 +189,14 @@ def test_state_round_trip_reproduces_mean_and_variance(tmp_path, params):
     other, doc = load_state(path, params={"noise.contact_var_m2": 1e-4})
     assert other.n_observations == est.n_observations
     assert np.abs(other.predict(Q)[0] - m0).max() > 1e-6
+
+
+@pytest.mark.parametrize("mode", ["2d", "3d"])
+def test_an_estimate_without_observations_round_trips(tmp_path, mode):
+    est = ShapeEstimator.from_params({"mode": mode, "lattice.points_per_axis_2d": 16, "lattice.points_per_axis_3d": 8})
+    loaded, doc = load_state(save_state(est, tmp_path / "estimate.json"))
+    assert loaded.n_observations == 0 and doc["observations"]["point_m"] == []
+    np.testing.assert_array_equal(loaded.lattice_mean(), est.lattice_mean())
 
 
 def _state(tmp_path):

@@ -175,6 +175,8 @@ def build_estimator(doc: Mapping[str, Any], path: str | Path = "state",
         rejected += not ok
     if not params:
         _verify(doc, est, path)
+        if isinstance(doc.get("n_rejected"), int):
+            est.n_rejected = doc["n_rejected"]  # what the original refused, for its counters
     return est, rejected
 
 
