@@ -383,8 +383,9 @@ class ShapeEstimator:
         .obj (2D polyline / 3D mesh), .stl (3D mesh)."""
         ls = self.level_set()
         variance = None
-        if Path(path).suffix.lower() == ".ply":
-            variance = self.predict(ls.vertices)[1] if len(ls.vertices) else np.zeros(0)
+        if Path(path).suffix.lower() == ".ply":  # in chunks: W is (rows, chunk) per prediction
+            variance = np.concatenate([np.zeros(0)] + [self.predict(ls.vertices[i: i + 2048])[1]
+                                                      for i in range(0, len(ls.vertices), 2048)])
         return export_level_set(path, ls, self.dim, variance=variance, plane_z_m=self.plane_z_m)
 
     def export_observations(self, path: str | Path) -> Path:
