@@ -92,3 +92,20 @@ def test_table_every_ten_touches_means_times_and_samples_the_rest():
     assert [r["decision_ms"] for r in rows] == [5.5, 15.5, 23.0]  # mean of touches 1-10, 11-20, 21-25
     text = format_table(rows)
     assert text.splitlines()[0].split() == ["touch", "mcap_mb", "decision_ms"] and len(text.splitlines()) == 4
+
+
+def test_held_contacts_subtracts_the_estimators_duplicates_by_log_time(tmp_path):
+    from tactile_bringup.soak import held_contacts
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    (logs / "explorer.log").write_text(
+        "[INFO] [100.5] [explorer]: exploring 'ellipse'\n"
+        + "".join(f"[INFO] [{101 + k}.0] [explorer]: touch   {k + 1}/4  contact\n" for k in range(4)))
+    (logs / "gpis_estimator.log").write_text(
+        "[WARN] [101.5] [gpis_estimator]: observation rejected (1 so far): duplicate: 0.1 mm from an earlier one\n"
+        "[WARN] [103.5] [gpis_estimator]: observation rejected (2 so far): bad cloud: NaN\n"
+        "[WARN] [103.9] [gpis_estimator]: observation rejected (3 so far): duplicate: 0.2 mm from an earlier one\n")
+    outcomes = ["contact", "contact", "free_space", "contact"]
+    # a touch is logged after its map, so a rejection of its contact comes before its line
+    assert held_contacts(tmp_path, outcomes) == [1, 1, 1, 1]  # 1, 2-1, 2-1 (no contact), 3-2

@@ -42,6 +42,7 @@ ROOT = Path(os.environ.get("TACTILE_ROOT") or Path(__file__).resolve().parents[3
 NODES = ("recorder", "sim_rig", "tactile_sensor", "gpis_estimator", "soc_planner", "viz", "arm_commander",
          "explorer")
 _TOUCH_LINE = re.compile(r"touch +\d+/")
+_STAMP = re.compile(r"^\[\w+\] \[(\d+\.\d+)\]")  # rcutils' log line: [LEVEL] [wall s] [node]: ...
 
 
 def find_node_pids(run_dir: Path, names=NODES, proc: Path = Path("/proc")) -> dict[str, int]:
@@ -98,6 +99,28 @@ def touches_done(run_dir: Path) -> int:
         return len(_TOUCH_LINE.findall((Path(run_dir) / "logs" / "explorer.log").read_text(errors="replace")))
     except OSError:
         return 0
+
+
+def _stamps(path: Path, text: str) -> np.ndarray:
+    """Wall-clock stamps (s) of the log lines of ``path`` that contain ``text``."""
+    try:
+        lines = path.read_text(errors="replace").splitlines()
+    except OSError:
+        return np.zeros(0)
+    return np.array([float(m.group(1)) for line in lines if text in line and (m := _STAMP.match(line))])
+
+
+def held_contacts(run_dir: Path, outcomes: list) -> list[int]:
+    """Contacts the estimator holds after each touch: contacts so far minus those it rejected as
+    duplicates (within ``duplicate_distance_m`` of an earlier one), from the explorer's and the
+    estimator's logs (one wall clock). A restarted estimator's log is appended to the same file."""
+    logs = Path(run_dir) / "logs"
+    touch_t = _stamps(logs / "explorer.log", "touch ")
+    touch_t = touch_t[:len(outcomes)]
+    dup_t = np.sort(_stamps(logs / "gpis_estimator.log", "duplicate"))
+    contacts = np.cumsum([o == "contact" for o in outcomes[:len(touch_t)]])
+    rejected = np.searchsorted(dup_t, touch_t, side="right")
+    return [int(c - r) for c, r in zip(contacts, rejected)]
 
 
 def sample(run_dir: Path, t0: float) -> dict:
@@ -171,6 +194,7 @@ def run_soak(mode: str, touches: int, out: Path, *, seed: int = 1, interval_s: f
             "wall_s": round(time.monotonic() - t0, 1), "stopped": stopped, "samples": samples,
             "decision_ms": [t.get("decision_ms") for t in report["touches"]],
             "outcomes": [t.get("outcome") for t in report["touches"]], "left_running": left,
+            "held_contacts": held_contacts(out, [t.get("outcome") for t in report["touches"]]),
             "stopped_because": report.get("summary", {}).get("stopped_because", "no report")}
 
 
@@ -197,11 +221,15 @@ def analyse(run: dict, *, warmup: Optional[int] = None, rss_bound_mb: float = 20
     dec = np.array([np.nan if d is None else d for d in run["decision_ms"]] + [np.nan] * (n - len(run["decision_ms"])),
                    dtype=float)
     curves["decision_ms"] = dec
+    held = run.get("held_contacts") or []
+    curves["gp_contacts"] = np.array(held + [np.nan] * (n - len(held)), dtype=float)[:n]
     contacts = np.cumsum([o == "contact" for o in run["outcomes"]]) if run["outcomes"] else np.zeros(0)
     verdicts = {}
     last = n - 1 if run["stopped_because"] == "touch budget" and n > 1 else n
     if last - warmup + 1 >= 3:
         for name, c in curves.items():
+            if name == "gp_contacts":
+                continue  # a count, shown beside the memory it explains
             bound = mcap_bound_mb if name == "mcap_mb" else decision_bound_ms if name == "decision_ms" \
                 else rss_bound_mb
             try:
@@ -228,7 +256,11 @@ def plot_soak(results: list[dict], path: Path) -> Path:
         for node in NODES:
             row[0].plot(x, curves[f"{node}_mb"], label=node)
         row[0].set(title=f"{res['mode']}: resident memory per node", xlabel="touch", ylabel="RSS (MB)")
-        row[0].legend(fontsize=7, ncol=2)
+        row[0].legend(fontsize=7, ncol=2, loc="lower right")
+        if np.isfinite(curves["gp_contacts"]).any():  # what the estimator's state grows with
+            twin = row[0].twinx()
+            twin.plot(x, curves["gp_contacts"], "k:", label="contacts held by the GP")
+            twin.set_ylabel("contacts held by the GP (dotted)")
         for ax, name, unit in ((row[1], "mcap_mb", "MCAP size (MB)"), (row[2], "decision_ms", "decision time (ms)")):
             ax.plot(x, curves[name], ".", ms=3)
             g = a["growth"].get(name, {})
@@ -253,9 +285,9 @@ def print_result(res: dict, file=sys.stdout) -> None:
           file=file)
     print(f"   command: {res['command']}", file=file)
     short = [{("touch" if k == "touch" else k.replace("_mb", "").replace("tactile_", "").replace("gpis_", "")
-               .replace("arm_", "")): v for k, v in r.items()} for r in a["every_10"]]
+               .replace("arm_", "").replace("gp_contacts", "gp_held")): v for k, v in r.items()} for r in a["every_10"]]
     print(format_table(short), file=file)
-    if res["left_running"]:
+    if res.get("left_running"):
         print(f"   explore.sh left running (stopped by the soak): {', '.join(res['left_running'])}", file=file)
     print(f"   growth, touches {a['warmup']}-{a['last_judged']} (line fit: slope per touch, its rise, peak rise; "
           f"verdict):", file=file)
@@ -277,6 +309,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     ap.add_argument("--interval", type=finite_float, default=1.0, help="sampling period, wall s (default 1)")
     ap.add_argument("--max-minutes", type=finite_float, default=None,
                     help="stop a run (SIGINT, the report so far is kept) after this many wall minutes")
+    ap.add_argument("--from-json", default=None, metavar="FILE",
+                    help="analyse the samples of an earlier soak's --json again (no run); soak.png beside FILE")
     ap.add_argument("--rss-bound-mb", type=finite_float, default=20.0,
                     help="rise of a node's RSS after the warm-up still called bounded (default 20 MB)")
     args = ap.parse_args(argv)
@@ -286,14 +320,24 @@ def main(argv: Optional[list[str]] = None) -> int:
         ap.error(f"--interval {args.interval:g}: must be > 0")
     if args.seed < 0:
         ap.error(f"--seed {args.seed}: must be >= 0")
-    out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="tactile-soak."))
-    if any((out / m).exists() for m in ("2d", "3d")):
-        ap.error(f"--out {out}: already holds a soak run; choose another folder")
+    if args.from_json:
+        try:
+            earlier = json.loads(Path(args.from_json).read_text())
+        except (OSError, ValueError) as exc:
+            ap.error(f"--from-json {args.from_json}: {exc}")
+        out = Path(args.out) if args.out else Path(args.from_json).resolve().parent
+        runs = iter(earlier)
+    else:
+        out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="tactile-soak."))
+        if any((out / m).exists() for m in ("2d", "3d")):
+            ap.error(f"--out {out}: already holds a soak run; choose another folder")
+        runs = (run_soak(mode, n, out / mode, seed=args.seed, interval_s=args.interval, max_minutes=args.max_minutes)
+                for mode, n in (("2d", args.touches_2d), ("3d", args.touches_3d)) if n > 0)
     results = []
-    for mode, n in (("2d", args.touches_2d), ("3d", args.touches_3d)):
-        if n == 0:
-            continue
-        res = run_soak(mode, n, out / mode, seed=args.seed, interval_s=args.interval, max_minutes=args.max_minutes)
+    for res in runs:
+        res.pop("analysis", None)
+        if "held_contacts" not in res:  # a soak of before this count: from the run's logs
+            res["held_contacts"] = held_contacts(Path(res["out"]), res["outcomes"])
         try:
             res["analysis"] = analyse(res, rss_bound_mb=args.rss_bound_mb)
         except ValueError as err:  # no touch at all: say so, keep the samples, go on
@@ -309,7 +353,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
         print(f"figures: {args.json}")
-    ok = all(r["stopped_because"] == "touch budget" and r["status"] == 0 and not r["left_running"] for r in results)
+    ok = all(r["stopped_because"] == "touch budget" and r["status"] == 0 and not r.get("left_running") for r in results)
     leak = [f"{r['mode']} {name}" for r in analysed for name, g in r["analysis"]["growth"].items()
             if name.endswith("_mb") and name != "mcap_mb" and g.get("verdict") == "superlinear"]
     if leak:
