@@ -97,7 +97,10 @@ def test_bad_input_gives_a_status_not_an_exception():
     assert res.status == "no_candidates" and "prior" not in res.message  # the lattice still holds a shape
     lost = m[m["kind"] == 0].copy()
     lost["mean"] = np.abs(lost["mean"]) + 0.01  # misses lifted the whole mean above zero
-    res = planner.plan(lost, tip)
+    res = planner.plan(lost, tip)  # the object is lost: the planner searches for it (tests/planner/test_search.py)
+    assert res.ok and res.message.startswith("search"), res.message
+    no_search = TouchPlanner.from_params(dict(load_params(str(CONFIG)), search_quantile=0.0), seed=0)
+    res = no_search.plan(lost, tip)
     assert res.status == "no_candidates" and "prior.type 'given'" in res.message
     res = planner.plan(m[::-1], tip)
     assert res.status == "bad_map" and "before the candidates" in res.message

@@ -25,6 +25,7 @@ from tactile_common.touch_geometry import MotionModel, TouchGeometry
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
 from .paths import path_length_m, shortcut
+from .search import object_lost, search_map
 from . import slides
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
@@ -48,6 +49,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "margin_m": (0.015, "minimum clearance of the tip centre from the estimated surface on paths", {"gt": 0.0}),
     "clearance": ("distance", "clearance measure: 'distance' (Euclidean, to the zero level set of the mean) or "
                               "'mean' (the GP mean μ, a distance only where |∇μ| ≈ 1)", {"choices": CLEARANCES}),
+    "search_quantile": (0.1, "no estimated surface left (every touch missed): probe the zero level set of "
+                        "μ − βσ, β the quantile of μ/σ that puts this fraction of the lattice on its inside, "
+                        "where the object is most probable (tactile_planner.search); 0 = stop with no_candidates",
+                        {"ge": 0.0, "lt": 1.0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -197,6 +202,15 @@ class TouchPlanner:
             lattice = type(lattice)(tuple(a[::s] for a in lattice.axes), lattice.mean_m[sl],
                                     lattice.variance_m2[sl], lattice.plane_z_m)
         m = len(cands)
+        searching = ""
+        min_z = float(p["min_tip_z_m"]) if dim == 3 else -np.inf
+        if m == 0 and float(p["search_quantile"]) > 0 and object_lost(lattice, min_z):  # search for it
+            found = search_map(lattice, float(p["search_quantile"]), min_z)
+            if found is not None:
+                lattice, cands = found
+                m = len(cands)
+                searching = (f"search (no estimated surface: probing the {float(p['search_quantile']):.0%} of "
+                             "the lattice where the object is most probable): ")
         if m == 0:
             why = ""
             if np.nanmin(lattice.mean_m) > 0:  # misses lifted the whole mean: the prior shape is gone
@@ -260,7 +274,8 @@ class TouchPlanner:
             why["last segment not free"] = reachable & ~graph.segments_free(
                 graph.xyz[np.maximum(term_node, 0)], pretouch)
             reachable &= ~why["last segment not free"]
-        revisiting = bool(reachable.any() and not (reachable & ~revisit).any())
+        # a search probes each spot once: a miss there is already in the estimate
+        revisiting = bool(reachable.any() and not (reachable & ~revisit).any()) and not searching
         if not revisiting:
             reachable &= ~revisit
         else:
@@ -312,7 +327,7 @@ class TouchPlanner:
         self.visited.append(target[idx].copy())
         return PlanResult(
             "ok",
-            f"candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
+            f"{searching}candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
             f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}{extra}",
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
             path_xyz=pts, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,

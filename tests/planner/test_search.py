@@ -1,0 +1,100 @@
+"""Search for a lost object (tactile_planner.search): when every touch missed, the planner probes
+where the object is most probable instead of stopping. Oracles: P(inside) = Φ(−μ/σ) computed
+here with scipy.stats, and finite differences of it along the candidates' normals."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from tactile_common.fields import KIND_LATTICE, VARIANCE_MAP_DTYPE
+from tactile_planner.maps import MapLattice, parse_variance_map
+from tactile_planner.planner import TouchPlanner, load_params
+from tactile_planner.search import search_field, search_map
+
+CONFIG = Path(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
+
+
+def _lost_lattice(n: int = 64) -> MapLattice:
+    """A 2D lattice whose mean is > 0 everywhere (misses lifted it), least so, and most uncertain,
+    around (0.55, 0.05): where the object most probably is."""
+    ax = (np.linspace(0.35, 0.65, n), np.linspace(-0.15, 0.15, n))
+    X, Y = np.meshgrid(*ax, indexing="ij")
+    d = np.hypot(X - 0.55, Y - 0.05)
+    mean = 0.01 + 0.2 * d
+    var = (0.02 + 0.1 * np.exp(-(d / 0.05) ** 2)) ** 2
+    return MapLattice(axes=ax, mean_m=mean, variance_m2=var, plane_z_m=0.06)
+
+
+def _as_map(lattice: MapLattice) -> np.ndarray:
+    X, Y = np.meshgrid(*lattice.axes, indexing="ij")
+    out = np.zeros(X.size, dtype=VARIANCE_MAP_DTYPE)
+    out["x"], out["y"], out["z"] = X.ravel(), Y.ravel(), lattice.plane_z_m
+    out["mean"], out["variance"] = lattice.mean_m.ravel(), lattice.variance_m2.ravel()
+    out["kind"] = KIND_LATTICE
+    return out
+
+
+@pytest.mark.parametrize("q", [0.05, 0.1, 0.3])
+def test_search_field_is_negative_on_the_most_probable_fraction(q):
+    lat = _lost_lattice()
+    s = search_field(lat, q)
+    p_inside = norm.cdf(-lat.mean_m / np.sqrt(lat.variance_m2))
+    inside = s < 0
+    assert abs(inside.mean() - q) <= 2.0 / inside.size
+    # every node of the search region is at least as probable as every node outside it
+    assert p_inside[inside].min() >= p_inside[~inside].max() - 1e-12
+
+
+def test_search_candidates_lie_on_the_search_surface_facing_less_probable_space():
+    lat = _lost_lattice()
+    found = search_map(lat, 0.1, max_candidates=50)
+    assert found is not None
+    search_lat, cands = found
+    assert 0 < len(cands) <= 50
+    from scipy.interpolate import RegularGridInterpolator
+
+    s_at = RegularGridInterpolator(lat.axes, search_lat.mean_m)(cands.xyz[:, :2])
+    assert np.abs(s_at).max() < 1e-3  # on the zero level set (linear interpolation on the lattice)
+    # the outward normal points to where the object is less probable (finite differences of P(inside))
+    p_in = RegularGridInterpolator(lat.axes, norm.cdf(-lat.mean_m / np.sqrt(lat.variance_m2)))
+    eps = 2e-3
+    ahead = p_in(cands.xyz[:, :2] + eps * cands.normal[:, :2])
+    behind = p_in(cands.xyz[:, :2] - eps * cands.normal[:, :2])
+    assert np.all(ahead < behind)
+    np.testing.assert_allclose(np.linalg.norm(cands.normal, axis=1), 1.0)
+    assert np.all(cands.xyz[:, 2] == 0.06) and np.all(cands.normal[:, 2] == 0.0)
+    # the candidates surround the most probable spot
+    assert np.linalg.norm(cands.xyz[:, :2].mean(axis=0) - [0.55, 0.05]) < 0.01
+
+
+def test_the_planner_searches_instead_of_stopping_and_says_so():
+    params = dict(load_params(str(CONFIG)), strategy="info_travel")
+    tip = np.array([0.38, -0.12, 0.06])
+    res = TouchPlanner.from_params(params, seed=1).plan(_as_map(_lost_lattice()), tip)
+    assert res.ok and res.message.startswith("search"), res.message
+    # on the boundary of the search region: a disc around the most probable spot holding 10 % of the area
+    radius = np.sqrt(0.1 * 0.3 * 0.3 / np.pi)
+    assert abs(np.linalg.norm(res.target_xyz[:2] - [0.55, 0.05]) - radius) < 0.01
+    # the approach goes into the most probable region
+    assert np.dot(-res.normal_xyz[:2], np.array([0.55, 0.05]) - res.target_xyz[:2]) > 0
+    off = TouchPlanner.from_params(dict(params, search_quantile=0.0), seed=1).plan(_as_map(_lost_lattice()), tip)
+    assert off.status == "no_candidates"
+
+
+def test_a_search_never_probes_the_same_spot_twice():
+    params = dict(load_params(str(CONFIG)), strategy="info_travel")
+    planner = TouchPlanner.from_params(params, seed=1)
+    tip = np.array([0.38, -0.12, 0.06])
+    m = _as_map(_lost_lattice())
+    targets = []
+    for _ in range(6):  # the same map (the misses taught nothing): the search still moves on
+        res = planner.plan(m, tip)
+        if not res.ok:
+            break
+        targets.append(res.target_xyz)
+    assert len(targets) >= 3
+    d = np.linalg.norm(np.array(targets)[:, None, :2] - np.array(targets)[None, :, :2], axis=2)
+    assert d[np.triu_indices(len(targets), 1)].min() > params["revisit_radius_m"]
+    assert parse_variance_map(m)[1].xyz.shape[0] == 0  # the map itself never had candidates
