@@ -7,7 +7,7 @@
 #   scripts/explore.sh --resume RUN_DIR [--touches N] [--real-time-factor X] [--rig ...] [--yes]
 #
 # Leaves in runs/<timestamp>/ (or --out): run.mcap, report.json, progress.png,
-# shape.csv (2D) or shape.ply (3D), params/ (every parameter file the nodes got)
+# the exports (shape.*, contacts.ply, estimate.json), params/ (every parameter file the nodes got)
 # and logs/ (one per node). Ctrl-C stops every node, finalises the MCAP and
 # still writes the report so far. --resume continues an interrupted run from its
 # recorded observations, with its parameters (a new --touches budget may extend

@@ -11,8 +11,9 @@ The sequencing, ids, re-sends and time-outs are the ROS-free
 converts messages. It keeps a replica of the estimate (the estimator's own
 core, fed the same observations with the same parameters) to compute IoU
 and surface error against the simulated object, and writes ``report.json``
-(the offline loop's schema), ``progress.png`` and the estimated shape into
-``out_dir``. On the real rig (``evaluate: false``) it records the same
+(the offline loop's schema), ``progress.png`` and the exports (shape files,
+``contacts.ply``, ``estimate.json``) into ``out_dir``; with ``resume_from`` it
+continues a run (:mod:`tactile_bringup.resume`). On the real rig (``evaluate: false``) it records the same
 without ground truth. It sets ``done`` when the run ends, and on Ctrl-C
 still writes the report so far.
 """
