@@ -144,9 +144,20 @@ class TouchReport:
     travel_m: float
     duration_s: float
     end_xyz_m: Optional[tuple] = None  # nominal end of the touch (world, m); None: unknown / did not move
+    #: A slide (None: a poke): its slid length (m), why it stopped, and its contact stream: every
+    #: contact (label 1 on /tactile/contacts) stamped from ``first_observation_stamp_ns`` (the
+    #: approach's contact) to ``observation_stamp_ns`` (the last one), ``contacts`` of them.
+    slide_m: Optional[float] = None
+    slide_stop: str = ""
+    first_observation_stamp_ns: Optional[int] = None
+    contacts: int = 0
+
+    @property
+    def is_slide(self) -> bool:
+        return self.slide_m is not None
 
     def values(self) -> dict:
-        return {
+        out = {
             "goal_stamp_ns": str(self.goal_stamp_ns),
             "observation_stamp_ns": "" if self.observation_stamp_ns is None else str(self.observation_stamp_ns),
             "travel_m": f"{self.travel_m:.6f}",
@@ -154,6 +165,12 @@ class TouchReport:
             "reason": self.reason,
             "end_xyz_m": _xyz_text(self.end_xyz_m),
         }
+        if self.is_slide:  # a poke's report is unchanged
+            out.update({"slide_m": f"{self.slide_m:.6f}", "slide_stop": self.slide_stop,
+                        "first_observation_stamp_ns": "" if self.first_observation_stamp_ns is None
+                        else str(self.first_observation_stamp_ns),
+                        "contacts": str(int(self.contacts))})
+        return out
 
     @classmethod
     def from_values(cls, outcome: str, values: Mapping[str, str]) -> "TouchReport":
@@ -163,6 +180,11 @@ class TouchReport:
             raise ValueError(f"unknown touch outcome {outcome!r}; one of "
                              f"{', '.join(o.value for o in TouchOutcome)}") from None
         obs = values.get("observation_stamp_ns", "")
+        slide = values.get("slide_m", "") != ""
+        first = values.get("first_observation_stamp_ns", "")
         return cls(_int(values, "goal_stamp_ns"), kind, values.get("reason", ""),
                    _int(values, "observation_stamp_ns") if obs != "" else None,
-                   _float(values, "travel_m"), _float(values, "duration_s"), _xyz(values, "end_xyz_m"))
+                   _float(values, "travel_m"), _float(values, "duration_s"), _xyz(values, "end_xyz_m"),
+                   _float(values, "slide_m") if slide else None, values.get("slide_stop", ""),
+                   _int(values, "first_observation_stamp_ns") if first != "" else None,
+                   _int(values, "contacts"))
