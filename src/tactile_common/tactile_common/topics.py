@@ -11,6 +11,8 @@ FINGERTIP_FRAME = "fingertip"
 
 # Sensing.
 CONTACTS = "/tactile/contacts"
+# Per-frame contact while in contact (one point; an empty cloud at the release): a slide's servo input.
+CONTACT_FRAMES = "/tactile/contact_frames"
 TAXELS = "/tactile/taxels"
 SENSOR_DECIDED = "/tactile/decided_through"  # DiagnosticStatus: frames judged up to a stamp, contacts sent so far
 DIAGNOSTICS = "/diagnostics"

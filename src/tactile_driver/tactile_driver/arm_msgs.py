@@ -52,6 +52,18 @@ def joint_positions(msg: JointState, names: Sequence[str]) -> Optional[np.ndarra
     return q if np.all(np.isfinite(q)) else None
 
 
+def joint_velocities(msg: JointState, names: Sequence[str]) -> Optional[np.ndarray]:
+    """Velocities of ``names`` (in that order) from a JointState, or None if not sent / invalid."""
+    if len(msg.velocity) != len(msg.name) or not len(msg.velocity):
+        return None
+    index = {n: i for i, n in enumerate(msg.name)}
+    try:
+        qd = np.array([msg.velocity[index[n]] for n in names], dtype=float)
+    except KeyError:
+        return None
+    return qd if np.all(np.isfinite(qd)) else None
+
+
 def trajectory_msg(traj: Optional[TimedTrajectory], joint_names: Sequence[str], frame_id: str = "") -> JointTrajectory:
     """A JointTrajectory starting now (stamp 0); ``None`` gives the empty message (stop and hold)."""
     msg = JointTrajectory()

@@ -11,6 +11,7 @@ call ``wait_until_complete(timeout_s)`` from a script that owns the node.
     ...
     arm.retract()                              # back to where the approach began
     arm.back_off(contact_xyz, clearance_m)     # away from a contact met on a path
+    arm.slide(direction_xyz, length_m, servo)  # after an approach's contact: follow the surface
 
 Everything goes through two topics: JointTrajectory out (a new trajectory
 replaces the current one; an empty one stops and holds) and JointState in.
@@ -21,6 +22,13 @@ joint states older than ``watchdog_timeout_s`` (steady clock, so it also
 fires when a simulated clock stops) stop the motion within one
 ``control_period_s``. With ``dry_run`` the planned trajectory goes to the
 inspection topic only and the task completes at once.
+
+A slide (:mod:`tactile_driver.slide_loop`) is a closed loop at the servo's
+``control_rate_hz`` on the node clock: each tick sends one short replacing
+trajectory (the IK of the servo's next target), so the e-stop and the
+watchdog stop it like any motion; the per-frame contacts come from the
+driver on ``/tactile/contact_frames`` and the thinned stream goes out
+through ``on_slide_contact``.
 """
 
 from __future__ import annotations
@@ -45,6 +53,8 @@ from tactile_driver.contact import back_off_target
 from tactile_driver.ik import IKSettings
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, home_configuration
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog, WorkspaceBox
+from tactile_driver.slide_loop import FrameContact, SlideLoop, servo_step_trajectory
+from tactile_driver.slide_servo import ContactSense, SlideServoConfig
 from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, plan_tip_path, time_parameterize
 
 
@@ -93,6 +103,8 @@ class CommanderConfig:
     trajectory_topic: str = topics.JOINT_TRAJECTORY
     planned_topic: str = "~/planned_trajectory"
     publish_fingertip_pose: bool = True
+    planar: bool = False  # 2D rig: slides stay in the x-y plane
+    slide_max_contact_age_s: float = 0.25  # a slide's latest contact frame older than this: no contact
 
 
 @dataclass
@@ -143,6 +155,12 @@ class ArmCommander:
         self._last: Optional[_Task] = None
         self.counters = {"invalid_joint_states": 0, "invalid_contacts": 0, "stops": 0, "rejected": 0}
         self._on_state = on_state
+        self._slide: Optional[SlideLoop] = None
+        self._slide_timer = None
+        self.qd: Optional[np.ndarray] = None  # measured joint velocities (None if not sent)
+        self._own_contact_ns: set[int] = set()  # stamps of the slide contacts this commander published
+        #: called with each FrameContact of a slide's thinned stream (the node publishes it)
+        self.on_slide_contact: Optional[Callable[[FrameContact], None]] = None
         self._pub_traj = node.create_publisher(JointTrajectory, c.trajectory_topic, qos.COMMANDS)
         self._pub_planned = node.create_publisher(JointTrajectory, c.planned_topic, qos.EVENTS)
         self._pub_pose = node.create_publisher(
@@ -151,6 +169,7 @@ class ArmCommander:
         node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.OBSERVATIONS)
         node.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.LATCHED)
         node.create_subscription(DiagnosticStatus, topics.SENSOR_DECIDED, self._on_sensor_decided, qos.SENSOR)
+        node.create_subscription(PointCloud2, topics.CONTACT_FRAMES, self._on_contact_frame, qos.STATE)
         node.create_timer(c.control_period_s, self._update, clock=self._steady)
 
     # -- verbs ------------------------------------------------------------------
@@ -235,6 +254,91 @@ class ArmCommander:
             return self._reject("back_off", "needs a finite contact point away from the tip centre")
         self.back_off_xyz = target
         return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+
+    def slide(self, direction_xyz: np.ndarray, length_m: float, servo: SlideServoConfig) -> bool:
+        """Slide along the surface from where the tip is (after an approach's contact), at most
+        ``length_m`` in ``direction_xyz`` (projected on the sensed tangent), by the servo's rules.
+
+        Ends SUCCEEDED when a stop rule of the servo ends it (``last_task.extra``: ``stop``,
+        ``slid_m``, ``contacts``, ``last_contact`` (a FrameContact or None), ``tip_path``), ABORTED
+        on e-stop, stale joint states or a target the arm cannot reach. Not in dry run.
+        """
+        if self.cfg.dry_run:
+            return self._reject("slide", "a slide is a closed loop: not in dry run")
+        if self._task is not None:
+            return self._reject("slide", f"busy with {self._task.kind}")
+        if self.estop.engaged:
+            return self._reject("slide", "e-stop engaged")
+        if self.q is None or self.watchdog_stale():
+            return self._reject("slide", "no recent joint state", joint_states_lost=True)
+        now = self.now_s()
+        try:
+            loop = SlideLoop(servo, direction_xyz, length_m, self.box.lower_xyz, self.box.upper_xyz, now,
+                             planar=self.cfg.planar, max_contact_age_s=self.cfg.slide_max_contact_age_s)
+        except ValueError as exc:
+            return self._reject("slide", str(exc))
+        q = np.array(self.q, dtype=float)
+        stub = TimedTrajectory(np.zeros(1), q[None], np.zeros((1, self.model.nq)), self.tip_xyz[None])
+        self._slide = loop
+        self._task = _Task("slide", stub, now)
+        # The loop runs on the node clock (simulated time on the rig), one tick per servo period.
+        self._slide_timer = self.node.create_timer(loop.period_s, self._slide_tick)
+        return True
+
+    def _slide_tick(self) -> None:
+        """One servo tick (module docstring): the next target as a short replacing trajectory."""
+        loop, task = self._slide, self._task
+        if loop is None or task is None or task.kind != "slide":
+            return
+        self._flush_slide_contacts()
+        now = self.now_s()
+        if not loop.due(now) or self.q is None:
+            return
+        step = loop.tick(now, self.tip_xyz)
+        if step.target_xyz is not None:
+            try:
+                traj = servo_step_trajectory(self.model, self.limits, self.box, self.ik, self.q, self.qd,
+                                             step.target_xyz, loop.period_s, self.cfg.max_joint_step_rad)
+            except (OutsideWorkspace, TrajectoryError) as exc:
+                loop.abort()
+                return self._end_slide(TaskResult.ABORTED, f"servo step: {exc}")
+            msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)
+            self._pub_planned.publish(msg)
+            self._pub_traj.publish(msg)  # stamp 0: replaces the running one on receipt
+            task.traj = traj
+        if step.stop is not None:
+            self._end_slide(TaskResult.SUCCEEDED, f"slide stopped: {step.stop.value}, {loop.slid_m:.3f} m")
+
+    def _flush_slide_contacts(self) -> None:
+        if self._slide is not None:
+            for frame in self._slide.take_published():
+                self._hand_out(frame)
+
+    def _hand_out(self, frame: FrameContact) -> None:
+        """Publish one contact of the stream (through ``on_slide_contact``); its echo on
+        /tactile/contacts is then not counted as the driver's."""
+        self._own_contact_ns.add(int(round(frame.stamp_s * 1e9)))
+        if self.on_slide_contact is not None:
+            self.on_slide_contact(frame)
+
+    def _end_slide(self, result: TaskResult, reason: str) -> None:
+        self._halt(result, reason)  # hold where it is (the last step may still be running: stop it)
+
+    def _close_slide(self, task: _Task) -> None:
+        """The slide task ends (any reason): stop its timer, close and hand out its stream."""
+        loop, self._slide = self._slide, None
+        if self._slide_timer is not None:
+            self.node.destroy_timer(self._slide_timer)
+            self._slide_timer = None
+        if loop is None:
+            return
+        loop.abort()
+        for frame in loop.finish():
+            self._hand_out(frame)
+        stop = loop.stop or loop.servo.stopped
+        task.extra.update(stop=stop.value if stop is not None else "aborted", slid_m=loop.slid_m,
+                          contacts=loop.n_contacts, last_contact=loop.last_contact,
+                          tip_path=np.array(loop.tip_path).reshape(-1, 3), ticks=loop.servo.ticks)
 
     def _path_point_before(self, contact_stamp_ns: Optional[int], clearance_m: float) -> Optional[np.ndarray]:
         """Joints of the last path waypoint ≥ ``clearance_m`` of tip travel before the contact, or None."""
@@ -365,7 +469,11 @@ class ArmCommander:
             return
         # Robot time: from the motion's start to its end (or the stop), not the wait before a timed start.
         t = self._task
-        self.motion_time_s += max(0.0, min(self.now_s(), t.start_s + t.traj.duration_s) - t.start_s)
+        if t.kind == "slide":  # a closed loop: its whole time is motion
+            self._close_slide(t)
+            self.motion_time_s += max(0.0, self.now_s() - t.start_s)
+        else:
+            self.motion_time_s += max(0.0, min(self.now_s(), t.start_s + t.traj.duration_s) - t.start_s)
         self._task.result, self._task.reason = result, reason
         self._last, self._task = self._task, None
         text = f"{self._last.kind}: {result.name.lower()} ({reason})"
@@ -387,6 +495,7 @@ class ArmCommander:
             return
         self.watchdog.feed(self._steady_s())
         self.q_stamp_s = stamp_s(msg.header.stamp)
+        self.qd = arm_msgs.joint_velocities(msg, self.model.joint_names)
         task = self._task
         if (task is not None and "arrived_s" not in task.extra and self.cfg.start_lead_s > 0
                 and np.max(np.abs(q - task.traj.positions_rad[-1])) <= 1e-9):
@@ -415,12 +524,15 @@ class ArmCommander:
             self.log.warning(f"contact ignored: frame '{msg.header.frame_id}' or a non-finite point",
                              throttle_duration_sec=5.0)
             return
+        stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
+        if len(hits) and stamp_ns in self._own_contact_ns:
+            self._own_contact_ns.discard(stamp_ns)
+            return  # our own slide stream, heard back
         if len(hits):
             self.contacts_received += 1
         task = self._task
-        if task is None or task.kind in ("retract", "back_off"):  # moving off the surface
+        if task is None or task.kind in ("retract", "back_off", "slide"):  # off the surface, or meant to touch
             return
-        stamp_ns = arm_msgs.stamp_ns(msg.header.stamp)
         if not len(hits) or stamp_ns * 1e-9 < task.start_s - 1e-3:
             return
         task.contact, task.contact_stamp_ns = hits[0], stamp_ns
@@ -429,6 +541,28 @@ class ArmCommander:
             self._halt(TaskResult.CONTACT, f"contact at {where}")
         else:  # a free-space path must not touch anything: the map was wrong, stop
             self._halt(TaskResult.ABORTED, f"unexpected contact at {where}")
+
+    def _on_contact_frame(self, msg: PointCloud2) -> None:
+        """The driver's per-frame contact stream (an empty cloud: released); used while sliding."""
+        if self._slide is None:
+            return
+        try:
+            points = from_pointcloud2(msg, list(fields.CONTACT_DTYPE.names))
+        except PointCloudError as exc:
+            self.counters["invalid_contacts"] += 1
+            self.log.warning(f"invalid contact frame ignored: {exc}", throttle_duration_sec=5.0)
+            return
+        t = arm_msgs.stamp_ns(msg.header.stamp) * 1e-9
+        hits = points[points["label"] == fields.LABEL_CONTACT]
+        if not len(hits):
+            return self._slide.on_frame(FrameContact(t, None))
+        point, normal = fields.xyz(hits[:1])[0], fields.normals(hits[:1])[0]
+        if msg.header.frame_id != topics.WORLD_FRAME or not np.all(np.isfinite(point)):
+            self.counters["invalid_contacts"] += 1
+            self.log.warning(f"contact frame ignored: frame '{msg.header.frame_id}' or a non-finite point",
+                             throttle_duration_sec=5.0)
+            return
+        self._slide.on_frame(FrameContact(t, ContactSense(point, normal, float(hits["force"][0]))))
 
     def _on_sensor_decided(self, msg: DiagnosticStatus) -> None:
         values = {kv.key: kv.value for kv in msg.values}
@@ -464,6 +598,8 @@ class ArmCommander:
             task.joint_states_lost = True
             self._halt(TaskResult.ABORTED, f"joint states stale for {self.watchdog.age_s(now):.2f} s")
             return
+        if task.kind == "slide":
+            return  # ended by its own loop (_slide_tick), the e-stop or the watchdog above
         elapsed = self.now_s() - task.start_s
         if elapsed < task.traj.duration_s:
             return

@@ -1,11 +1,12 @@
 """Node ``arm_commander``: executes touches (goal + path) on the arm through ros2_control's topics.
 
-In:  /planner/goal (PoseStamped), /planner/path (Path, same stamp as its goal),
-     /joint_states, /tactile/contacts, /arm/estop (latched Bool).
-Out: /joint_trajectory_controller/joint_trajectory (JointTrajectory),
-     ~/planned_trajectory (every planned trajectory, also in dry run),
-     /arm/fingertip_pose, /tactile/contacts (the free-space point, label 0),
-     /arm/touch_done (DiagnosticStatus). See docs/arm.md.
+In:  /planner/goal (PoseStamped), /planner/path (Path, same stamp as its goal; a slide goal's
+     path ends with the slide marker, tactile_common.slide_goal),
+     /joint_states, /tactile/contacts, /tactile/contact_frames (while sliding), /arm/estop (latched Bool).
+Out: /joint_trajectory_controller/joint_trajectory (JointTrajectory; while sliding one short
+     replacing trajectory per servo tick), ~/planned_trajectory (every planned trajectory, also in dry run),
+     /arm/fingertip_pose, /tactile/contacts (the free-space point, label 0; a slide's thinned contact
+     stream, label 1), /arm/touch_done (DiagnosticStatus). See docs/arm.md.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.cycle import TouchReport
 from tactile_common.cycle_msgs import report_msg
+from tactile_common.slide_goal import decode_path
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_common.stamps import stamp_ns, time_from_ns
 from tactile_common.touch_geometry import TouchGeometry
@@ -32,11 +34,36 @@ from tactile_driver import arm_msgs
 from tactile_driver.commander_api import ArmCommander, CommanderConfig
 from tactile_driver.goal_inbox import GoalInbox, Verdict
 from tactile_driver.kinematics import KinematicsError
+from tactile_driver.slide_loop import FrameContact
+from tactile_driver.slide_servo import SlideServoConfig
 from tactile_driver.startup_move import StartupMove
 from tactile_driver.touch_executor import OUTCOME_UNREACHABLE, TouchExecutor, TouchRequest
 
 _D = CommanderConfig()
 START_ATTEMPTS = 3  # moves to the start position that may end for stalled joint states
+_S = SlideServoConfig()
+#: The slide servo's parameters (tactile_driver.slide_servo; the offline loop reads the same keys).
+SLIDE_PARAMS = {
+    "slide.slide_speed_mps": (_S.slide_speed_mps, "slide: tip speed along the surface (the servo's step = speed / "
+                              "rate); keep equal to the planner's slide_speed_mps", {"gt": 0.0}),
+    "slide.control_rate_hz": (_S.control_rate_hz, "slide: servo ticks per second (node clock), one replacing "
+                              "trajectory each", {"gt": 0.0}),
+    "slide.target_force_n": (_S.target_force_n, "slide: normal force the servo holds", {"gt": 0.0}),
+    "slide.min_force_n": (_S.min_force_n, "slide: below this the contact is weak (no tangent step)", {"ge": 0.0}),
+    "slide.max_force_n": (_S.max_force_n, "slide: above this the slide stops (jammed)", {"gt": 0.0}),
+    "slide.gain_m_per_n": (_S.gain_m_per_n, "slide: normal correction per newton of force error", {"gt": 0.0}),
+    "slide.max_correction_m": (_S.max_correction_m, "slide: largest normal correction per tick", {"gt": 0.0}),
+    "slide.lost_ticks": (_S.lost_ticks, "slide: weak or lost this many ticks in a row: stop (an edge)", {"ge": 1}),
+    "slide.thin_distance_m": (_S.thin_distance_m, "slide: publish a contact every this much contact travel",
+                              {"gt": 0.0}),
+    "slide.thin_angle_rad": (_S.thin_angle_rad, "slide: ...or when the normal turned by this much", {"gt": 0.0}),
+    "slide.lap_radius_m": (_S.lap_radius_m, "slide: back within this of the first contact: a lap, stop (0 = off)",
+                           {"ge": 0.0}),
+    "slide.approach_depth_m": (_S.approach_depth_m, "slide: the guarded approach's depth beyond the estimated "
+                               "surface before a slide", {"gt": 0.0}),
+    "slide.max_contact_age_s": (0.25, "slide: a contact frame older than this (node clock) is no contact "
+                                "(a silent driver stops the slide)", {"gt": 0.0}),
+}
 PARAMS = {
     "urdf_path": (_D.urdf_path, "URDF of the arm; '' = Franka Panda from example-robot-data"),
     "joint_names": (list(_D.joint_names), "actuated joints, in command order"),
@@ -80,6 +107,8 @@ PARAMS = {
     "start_clearance_z_m": (0.25, "transfer height above the objects on the way to the start position"),
     "dry_run": (False, "plan and publish on ~/planned_trajectory only; send nothing to the controller"),
     "trajectory_topic": (_D.trajectory_topic, "ros2_control joint_trajectory_controller input"),
+    "mode": ("2d", "'2d': slides stay in the x-y plane; '3d'", {"choices": ("2d", "3d")}),
+    **SLIDE_PARAMS,
 }
 
 
@@ -90,7 +119,10 @@ class ArmCommanderNode(Node):
         super().__init__("arm_commander")
         started_ns = time.time_ns()  # wall clock, as the DDS source timestamps of the goals
         p = declare_parameters(self, PARAMS)
-        cfg = CommanderConfig(**{k: v for k, v in vars(p).items() if k in CommanderConfig.__dataclass_fields__})
+        cfg = CommanderConfig(**{k: v for k, v in vars(p).items() if k in CommanderConfig.__dataclass_fields__},
+                              planar=p.mode == "2d")  # slide_max_contact_age_s: the slide. parameter
+        values = vars(p)
+        servo = SlideServoConfig.from_params({k: values[k.replace(".", "_")] for k in SLIDE_PARAMS}, "slide.")
         try:
             self.arm = ArmCommander(self, cfg)
         except KinematicsError as exc:
@@ -98,7 +130,9 @@ class ArmCommanderNode(Node):
         geometry = TouchGeometry(p.tip_radius_m, p.standoff_m, p.max_depth_m)
         self.touches = TouchExecutor(self.arm, geometry.approach_length_m, p.dwell_s,
                                      self._publish_free_space, self._publish_done,
-                                     back_off_clearance_m=p.standoff_m)
+                                     back_off_clearance_m=p.standoff_m, slide_servo=servo,
+                                     slide_approach_length_m=p.standoff_m + servo.approach_depth_m)
+        self.arm.on_slide_contact = self._publish_slide_contact
         self.inbox = GoalInbox(started_ns)
         self.startup = StartupMove(self.arm, p.start_tip_xyz_m, p.start_clearance_z_m, START_ATTEMPTS,
                                    self.get_logger()) if p.move_to_start else None
@@ -139,7 +173,8 @@ class ArmCommanderNode(Node):
             return
         try:
             position, rotation = arm_msgs.pose_arrays(decision.goal.pose)
-            path_xyz = arm_msgs.path_xyz(decision.path)
+            plan = decode_path(arm_msgs.path_xyz(decision.path), position)  # a slide: its marker split off
+            path_xyz = plan.free_path_xyz
             if not (np.all(np.isfinite(position)) and np.all(np.isfinite(path_xyz))):
                 raise ValueError("goal or path is not finite")
             frames = {decision.goal.header.frame_id, decision.path.header.frame_id}
@@ -150,13 +185,23 @@ class ArmCommanderNode(Node):
             self.invalid_goals += 1
             self.get_logger().error(f"invalid goal {decision.stamp_ns}: {exc}")
             return self._publish_done(TouchReport(decision.stamp_ns, OUTCOME_UNREACHABLE, str(exc), None, 0.0, 0.0))
-        self.touches.submit(TouchRequest(decision.stamp_ns, position, rotation[:, 0], path_xyz))
+        self.touches.submit(TouchRequest(decision.stamp_ns, position, rotation[:, 0], path_xyz,
+                                         plan.slide_direction_xyz, plan.slide_length_m))
 
     def _publish_free_space(self, tip_xyz: np.ndarray, observation_stamp_ns: int) -> None:
         point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
         point["x"], point["y"], point["z"] = tip_xyz
         point["label"] = fields.LABEL_FREE_SPACE
         self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, time_from_ns(observation_stamp_ns)))
+
+    def _publish_slide_contact(self, frame: FrameContact) -> None:
+        """One contact of a slide's thinned stream (label 1, stamp = its frame's)."""
+        point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+        point["x"], point["y"], point["z"] = frame.sense.point_xyz
+        point["normal_x"], point["normal_y"], point["normal_z"] = frame.sense.normal_xyz
+        point["force"], point["label"] = frame.sense.force_n, fields.LABEL_CONTACT
+        self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, time_from_ns(
+            int(round(frame.stamp_s * 1e9)))))
 
     def _publish_done(self, report: TouchReport) -> None:
         self.inbox.finished(report)

@@ -5,12 +5,23 @@ stamps each frame with host time (:class:`DeviceClock`), drops stale frames
 (older than ``max_frame_age_s`` when read) and frames with the wrong taxel
 count, runs the :class:`ContactDetector`, and turns each contact onset into
 a world-frame contact with the fingertip pose interpolated at the frame's
-time (:class:`PoseBuffer`). An onset newer than the newest pose waits (at
-most ``pose_wait_s``) for the pose that covers its time, which arrives by
-another path (joint states -> commander); ``add_pose`` returns the contacts
-it completes. An onset older than the buffer, or one whose wait expires, is
-refused (counted) and the detector re-armed, so a later frame with a pose can
-report it. The node publishes what ``feed`` and ``add_pose`` return.
+time (:class:`PoseBuffer`). An onset newer than the newest pose waits for
+the pose that covers its time, which arrives by another path (joint states
+-> commander), however long the pose stream lags: while it waits it holds
+``decided_through_s``, so the commander cannot end that approach as free
+space (before, an onset whose wait expired was refused, the approach ended as
+"free space" inside the object, and the re-armed detector reported the
+contact later, deep; seen under load on the graph). ``add_pose`` returns the
+contacts it completes. An onset the poses have passed without one within
+tolerance of its time (older than the buffer, or a gap) is refused (counted)
+and the detector re-armed, so a later frame with a pose can report it. The node publishes what ``feed`` and ``add_pose`` return.
+
+The per-frame stream (``frame_contacts``, what a slide's servo reads): every
+frame while the detector is in contact gives its current estimate in the
+world frame (the pose at the frame's time, waited for like an onset's), and
+the first frame out of contact gives a release (None). They come out in
+frame order; a frame whose pose does not come within ``pose_wait_s`` is
+dropped (counted in ``dropped_frame_contacts``).
 """
 
 from __future__ import annotations
@@ -53,6 +64,7 @@ class WorldContact:
 class DriverOutput:
     frames: list = field(default_factory=list)  # (stamp_s, values uint16) of every accepted frame
     contacts: list = field(default_factory=list)  # WorldContact
+    frame_contacts: list = field(default_factory=list)  # (stamp_s, WorldContact or None = released), in order
 
 
 @dataclass
@@ -62,6 +74,7 @@ class DriverStats:
     wrong_size_frames: int = 0
     contacts: int = 0
     refused_no_pose: int = 0
+    dropped_frame_contacts: int = 0
 
 
 class SensorDriver:
@@ -77,6 +90,7 @@ class SensorDriver:
         self.clock = DeviceClock(config.clock_window_s)
         self.stats = DriverStats()
         self._pending: list = []  # (stamp_s, ContactEstimate) waiting for a pose
+        self._frames_pending: list = []  # (stamp_s, ContactEstimate or None) of the per-frame stream, in order
         self.newest_frame_s = -np.inf  # stamp of the newest frame run through the detector
 
     @property
@@ -87,8 +101,9 @@ class SensorDriver:
         The arm commander ends an approach as free space only once this has
         passed the end of the approach: a fixed latency would decide by timing.
         """
-        if self._pending:
-            return min(s for s, _ in self._pending) - 1e-9
+        waiting = [s for s, _ in self._pending] + [s for s, e in self._frames_pending[:1] if e is not None]
+        if waiting:
+            return min(waiting) - 1e-9
         return self.newest_frame_s
 
     def device_reset(self) -> None:
@@ -106,6 +121,28 @@ class SensorDriver:
             return None
         return self._resolve_pending(now_s=None)
 
+    def take_frame_contacts(self, now_s: Optional[float] = None) -> list:
+        """The per-frame stream resolved so far (module docstring), in frame order: a head that
+        waits for its pose holds the rest back; with ``now_s`` a head waiting longer than
+        ``pose_wait_s`` is dropped."""
+        out = []
+        newest = self.poses.newest_s
+        while self._frames_pending:
+            stamp_s, est = self._frames_pending[0]
+            if est is None:
+                out.append((stamp_s, None))
+            else:
+                pose = self.poses.at(stamp_s) if newest is not None and newest >= stamp_s else None
+                if pose is not None:
+                    point, normal = est.to_world(*pose)
+                    out.append((stamp_s, WorldContact(stamp_s, point, normal, est.force_n)))
+                elif now_s is not None and now_s - stamp_s > self.config.pose_wait_s:
+                    self.stats.dropped_frame_contacts += 1
+                else:
+                    break
+            self._frames_pending.pop(0)
+        return out
+
     def _resolve_pending(self, now_s: Optional[float]) -> list:
         done, keep = [], []
         newest = self.poses.newest_s
@@ -114,9 +151,9 @@ class SensorDriver:
             pose = self.poses.at(stamp_s) if newest is not None and newest >= stamp_s else None
             if pose is not None:
                 done.append(self._world(stamp_s, est, pose))
-            elif now_s is not None and now_s - stamp_s > self.config.pose_wait_s:
+            elif newest is not None and newest >= stamp_s:  # the poses passed its time, none covers it
                 self._refuse()
-            else:
+            else:  # the pose stream is behind: wait (it holds decided_through, so no approach ends as free space)
                 keep.append((stamp_s, est))
         self._pending = keep
         return done
@@ -145,7 +182,12 @@ class SensorDriver:
             self.stats.frames += 1
             self.newest_frame_s = max(self.newest_frame_s, stamp_s)
             out.frames.append((stamp_s, frame.values))
+            was_in_contact = self.detector.in_contact
             est = self.detector.update(frame.values)
+            if self.detector.in_contact and self.detector.current is not None:
+                self._frames_pending.append((stamp_s, self.detector.current))
+            elif was_in_contact and not self.detector.in_contact:
+                self._frames_pending.append((stamp_s, None))  # released
             if est is None:
                 continue
             newest = self.poses.newest_s
@@ -159,4 +201,5 @@ class SensorDriver:
                 out.contacts.append(self._world(stamp_s, est, pose))
             else:
                 self._refuse()
+        out.frame_contacts = self.take_frame_contacts(now_s)
         return out

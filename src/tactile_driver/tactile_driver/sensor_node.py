@@ -4,7 +4,10 @@ Reads the serial device (``port``, ``baud``; reconnects with back-off), and
 per frame publishes the raw taxels on /tactile/taxels and, at each contact
 onset, one point on /tactile/contacts (world frame, CONTACT_DTYPE, label 1,
 stamp = frame time) using the fingertip pose interpolated from
-/arm/fingertip_pose. Health on /diagnostics. The work is done by
+/arm/fingertip_pose. While in contact, every frame's estimate also goes to
+/tactile/contact_frames (one point, same layout; an empty cloud at the frame
+the contact is released): the per-frame input of a slide's servo (the arm
+commander thins it into the /tactile/contacts stream). Health on /diagnostics. The work is done by
 :class:`tactile_driver.driver.SensorDriver`; this file only wires it.
 """
 
@@ -83,6 +86,7 @@ class TactileSensorNode(Node):
         self._last_counts: dict = {}
         self._pub_contacts = self.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
         self._pub_taxels = self.create_publisher(Float32MultiArray, topics.TAXELS, qos.SENSOR)
+        self._pub_frames = self.create_publisher(PointCloud2, topics.CONTACT_FRAMES, qos.STATE)
         self._pub_decided = self.create_publisher(DiagnosticStatus, topics.SENSOR_DECIDED, qos.SENSOR)
         self._decided_sent_s = -np.inf
         self._contacts_sent = 0
@@ -106,6 +110,7 @@ class TactileSensorNode(Node):
             return
         for c in completed:
             self._publish_contact(c)
+        self._publish_frames(self.driver.take_frame_contacts())
         self._publish_decided()
 
     def _publish_decided(self) -> None:
@@ -136,7 +141,18 @@ class TactileSensorNode(Node):
         self._rate_frames += len(out.frames)
         for c in out.contacts:
             self._publish_contact(c)
+        self._publish_frames(out.frame_contacts)
         self._publish_decided()
+
+    def _publish_frames(self, frames: list) -> None:
+        """The per-frame stream: one point per frame in contact, an empty cloud at a release."""
+        for stamp_s, c in frames:
+            point = np.zeros(0 if c is None else 1, dtype=fields.CONTACT_DTYPE)
+            if c is not None:
+                point["x"], point["y"], point["z"] = c.point_xyz
+                point["normal_x"], point["normal_y"], point["normal_z"] = c.normal_xyz
+                point["force"], point["label"] = c.force_n, fields.LABEL_CONTACT
+            self._pub_frames.publish(to_pointcloud2(point, self.world_frame, time_from_s(stamp_s)))
 
     def _publish_contact(self, c: WorldContact) -> None:
         point = np.zeros(1, dtype=fields.CONTACT_DTYPE)

@@ -13,6 +13,21 @@ Any other abort (e-stop, stale joint states, time-out) ends the touch as
 ``aborted``. In dry-run mode the three motions are planned and published
 for inspection only and the touch ends as ``aborted`` (reason ``dry_run``).
 No message handling here: the node passes the commander and two publish callbacks.
+
+A slide request (``slide_length_m`` set; tactile_common.slide_goal):
+
+    validate -> follow_path -> approach (standoff + servo.approach_depth_m) -> contact -> slide -> back_off -> done
+                            (path contact) -> slide ...      approach at full depth -> free space -> done
+
+The slide (:meth:`ArmCommander.slide`) starts where the approach's contact
+stopped the arm, or where the path met the object; then the arm backs off
+``back_off_clearance_m`` from the slide's last contact (the touch's nominal
+end). Free space after the approach: the finger stays at the probe end (it
+is in free space: nothing to retract from). The report carries the slid
+length, why it stopped, and the contact stream: the approach's contact
+(``first_observation_stamp_ns``) to the last one published
+(``observation_stamp_ns``), ``contacts`` in all. As offline
+(tactile_bringup.slide_touch).
 """
 
 from __future__ import annotations
@@ -41,6 +56,12 @@ class TouchRequest:
     pre_touch_xyz: np.ndarray  # world, m
     approach_dir: np.ndarray  # unit, world (the goal's x-axis)
     path_xyz: np.ndarray  # (K, 3) world, m
+    slide_direction_xyz: Optional[np.ndarray] = None  # a slide: unit start direction (world)
+    slide_length_m: float = float("nan")  # a slide: planned length (m); NaN: a poke
+
+    @property
+    def is_slide(self) -> bool:
+        return self.slide_direction_xyz is not None and bool(np.isfinite(self.slide_length_m))
 
 
 class TouchExecutor:
@@ -48,9 +69,12 @@ class TouchExecutor:
 
     def __init__(self, arm: ArmCommander, approach_length_m: float, dwell_s: float,
                  publish_free_space: Callable[[np.ndarray, int], None],
-                 publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01) -> None:
+                 publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01,
+                 slide_servo=None, slide_approach_length_m: Optional[float] = None) -> None:
         if approach_length_m <= 0:
             raise ValueError("approach length (standoff + max depth) must be positive")
+        self.slide_servo = slide_servo  # SlideServoConfig; None: slides are refused (unreachable)
+        self.slide_approach_length_m = float(slide_approach_length_m or approach_length_m)
         self.arm = arm
         self.approach_length_m = float(approach_length_m)
         self.dwell_s = float(dwell_s)
@@ -69,6 +93,8 @@ class TouchExecutor:
         self._obs_stamp_ns: Optional[int] = None
         self._travel_planned_m = 0.0
         self._end_xyz: Optional[np.ndarray] = None
+        self._first_obs_ns: Optional[int] = None
+        self._slide: Optional[dict] = None  # the slide's outcome (task extra)
 
     @property
     def busy(self) -> bool:
@@ -87,17 +113,40 @@ class TouchExecutor:
         if not arm.is_task_complete():
             return
         result, task = arm.get_result(), arm.last_task
+        slide = self._req.is_slide
         if self._state == "path":
             if result == TaskResult.ABORTED and task.contact is not None and not arm.estop.engaged:
+                if slide:  # the path met the object: slide on from that contact
+                    self._reason = f"path: {task.reason}"
+                    return self._start_slide(task.contact_stamp_ns)
                 return self._back_off(task)
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"path: {task.reason}")
             self._travel_planned_m += task.traj.length_m
-            if not arm.approach(self._req.approach_dir, self.approach_length_m):
+            depth = self.slide_approach_length_m if slide else self.approach_length_m
+            if not arm.approach(self._req.approach_dir, depth):
                 return self._done(OUTCOME_ABORTED, f"approach: {arm.last_task.reason}")
             self._state = "approach"
+        elif self._state == "slide":
+            self._slide = dict(task.extra)
+            if result != TaskResult.SUCCEEDED:
+                return self._done(OUTCOME_ABORTED, f"slide: {task.reason}")
+            self._outcome = OUTCOME_CONTACT
+            self._reason = "; ".join(filter(None, [self._reason, task.reason]))
+            last = self._slide.get("last_contact")
+            if last is not None:
+                self._obs_stamp_ns = int(round(last.stamp_s * 1e9))
+                contact_xyz = np.asarray(last.sense.point_xyz, dtype=float)
+            else:
+                contact_xyz = self._onset_xyz
+            if not arm.back_off(contact_xyz, self.back_off_clearance_m):
+                return self._done(OUTCOME_ABORTED, f"slide: back_off: {arm.last_task.reason}")
+            self._end_xyz = np.asarray(arm.back_off_xyz, dtype=float)
+            self._state = "retract"
         elif self._state == "approach":
             self._travel_planned_m += task.traj.length_m
+            if slide and result == TaskResult.CONTACT and not arm.cfg.dry_run:
+                return self._start_slide(task.contact_stamp_ns, task.contact)
             if arm.cfg.dry_run:
                 self._outcome = OUTCOME_ABORTED
             elif result == TaskResult.CONTACT:
@@ -107,6 +156,9 @@ class TouchExecutor:
                 # The probe end: FK of the final commanded joints (the arm is there within goal tolerance).
                 self._publish_free_space(arm.model.fk(task.traj.positions_rad[-1])[0], stamp_ns)
                 self._outcome, self._obs_stamp_ns = OUTCOME_FREE_SPACE, stamp_ns
+                if slide:  # in free space: nothing to retract from; the finger stays at the probe end
+                    self._end_xyz = arm.model.fk(task.traj.positions_rad[-1])[0]
+                    return self._done(self._outcome, "slide: no contact within the approach")
             else:
                 return self._done(OUTCOME_ABORTED, f"approach: {task.reason}")
             self._dwell_until_s = arm.now_s() + (0.0 if arm.cfg.dry_run else self.dwell_s)
@@ -133,11 +185,16 @@ class TouchExecutor:
         self._req, self._t0_s, self._odo0_m = req, self.arm.motion_time_s, self.arm.odometer_m
         self._obs_stamp_ns, self._outcome, self._reason, self._travel_planned_m = None, "", "", 0.0
         self._end_xyz = None
+        self._first_obs_ns, self._slide, self._onset_xyz = None, None, None
         self._dwelt_s = 0.0  # robot time of the dwell (not a motion)
+        if req.is_slide and (self.slide_servo is None or self.arm.cfg.dry_run):
+            return self._done(OUTCOME_UNREACHABLE, "slide goal: this commander does not slide"
+                              + (" in dry run" if self.arm.cfg.dry_run else ""))
+        depth = self.slide_approach_length_m if req.is_slide else self.approach_length_m
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
         try:  # plan the whole touch before moving
             to_goal = self.arm.plan(path)
-            self.arm.plan(req.pre_touch_xyz + self.approach_length_m * req.approach_dir,
+            self.arm.plan(req.pre_touch_xyz + depth * req.approach_dir,
                           q_start=to_goal.positions_rad[-1], speed_mps=self.arm.cfg.approach_speed_mps,
                           step_m=self.arm.cfg.approach_step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
@@ -145,6 +202,17 @@ class TouchExecutor:
         if not self.arm.follow_path(path):
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
+
+    def _start_slide(self, contact_stamp_ns: int, contact=None) -> None:
+        """The approach (or the path) met the surface: slide from here."""
+        task = self.arm.last_task
+        self._first_obs_ns = int(contact_stamp_ns)
+        record = contact if contact is not None else task.contact
+        self._onset_xyz = fields.xyz(np.atleast_1d(record))[0] if record is not None else self.arm.tip_xyz
+        self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, self._first_obs_ns
+        if not self.arm.slide(self._req.slide_direction_xyz, self._req.slide_length_m, self.slide_servo):
+            return self._done(OUTCOME_ABORTED, f"slide: {self.arm.last_task.reason}")
+        self._state = "slide"
 
     def _back_off(self, task) -> None:
         """The path met the object where the map said free space: keep the contact, leave the surface."""
@@ -160,8 +228,14 @@ class TouchExecutor:
         req = self._req
         travel = self._travel_planned_m if self.arm.cfg.dry_run else self.arm.odometer_m - self._odo0_m
         end = None if outcome == OUTCOME_ABORTED or self._end_xyz is None else tuple(map(float, self._end_xyz))
+        slide = {}
+        if req.is_slide and outcome in (OUTCOME_CONTACT, OUTCOME_FREE_SPACE):
+            s = self._slide or {}
+            slide = dict(slide_m=float(s.get("slid_m", 0.0)), slide_stop=str(s.get("stop", "")),
+                         first_observation_stamp_ns=self._first_obs_ns,
+                         contacts=(1 + int(s.get("contacts", 0))) if self._first_obs_ns is not None else 0)
         report = TouchReport(req.goal_stamp_ns, outcome, reason, self._obs_stamp_ns,
                              0.0 if outcome == OUTCOME_UNREACHABLE else travel,
-                             self.arm.motion_time_s - self._t0_s + self._dwelt_s, end)
+                             self.arm.motion_time_s - self._t0_s + self._dwelt_s, end, **slide)
         self._req, self._state = None, "idle"
         self._publish_done(report)

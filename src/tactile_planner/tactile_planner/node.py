@@ -5,6 +5,9 @@ Wiring: /gpis/variance_map (MAP), /arm/fingertip_pose (SENSOR), /planner/request
 /arm/touch_done ('unreachable' → exclude that goal's target) →
 TouchPlanner.plan → /planner/goal (PoseStamped, x-axis = −normal),
 /planner/path (nav_msgs/Path), /planner/status (the answer to every request).
+With ``touch: slide`` a slide goal also carries its direction (the goal's
+y-axis) and its length (the path's last segment, the slide marker):
+:mod:`tactile_common.slide_goal`.
 
 Delivery (docs/architecture.md): goal and path are stamped with the request
 id they answer. A request seen again (re-sent, or handed over by the durable
@@ -31,6 +34,7 @@ from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome
 from tactile_common.cycle_msgs import answer_msg, report_from_msg, request_from_msg
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
+from tactile_common.slide_goal import encode_path, slide_rotation
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_ns, time_from_ns
 
@@ -178,18 +182,31 @@ class SocPlannerNode(Node):
     def header(self, stamp) -> Header:
         return Header(frame_id=self.frame_id, stamp=stamp)
 
+    @staticmethod
+    def _is_slide(res: PlanResult) -> bool:
+        return bool(np.isfinite(res.slide_length_m) and np.all(np.isfinite(res.slide_direction_xyz)))
+
+    def _rotation(self, res: PlanResult) -> np.ndarray:
+        """x = the approach (−n); a slide: y = its direction (tactile_common.slide_goal)."""
+        if self._is_slide(res):
+            return slide_rotation(-np.asarray(res.normal_xyz, dtype=float), res.slide_direction_xyz)
+        return approach_rotation(res.normal_xyz)
+
     def goal_msg(self, res: PlanResult, stamp) -> PoseStamped:
         msg = PoseStamped(header=self.header(stamp))
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = map(float, res.pretouch_xyz)
-        q = quaternion_xyzw(approach_rotation(res.normal_xyz))
+        q = quaternion_xyzw(self._rotation(res))
         o = msg.pose.orientation
         o.x, o.y, o.z, o.w = map(float, q)
         return msg
 
     def path_msg(self, res: PlanResult, stamp) -> Path:
         path = Path(header=self.header(stamp))
-        q = quaternion_xyzw(approach_rotation(res.normal_xyz))
-        for pt in res.path_xyz:
+        q = quaternion_xyzw(self._rotation(res))
+        points = res.path_xyz
+        if self._is_slide(res):  # the slide marker after the pre-touch point
+            points = encode_path(points, res.pretouch_xyz, res.slide_direction_xyz, res.slide_length_m)
+        for pt in points:
             ps = PoseStamped(header=self.header(stamp))
             ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, pt)
             ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z, ps.pose.orientation.w = map(float, q)

@@ -1,0 +1,224 @@
+"""A slide on the node graph, one control tick at a time (ROS-free).
+
+World frame, metres, seconds of the node clock (simulated time on the rig).
+The arm commander runs the servo of :mod:`tactile_driver.slide_servo` as a
+closed loop over topics:
+
+- the driver streams the per-frame contact while the finger is in contact
+  (``/tactile/contact_frames``: one point per frame, then an empty cloud at
+  the frame the contact is released); :meth:`SlideLoop.on_frame` takes each;
+- every ``1 / control_rate_hz`` (:meth:`SlideLoop.due`, the node's timer) it
+  calls :meth:`SlideLoop.tick` with the forward-kinematics tip of the latest
+  joint state and the latest frame's contact (none after a release), once a
+  frame stamped at or after the previous tick's command has come in: the
+  servo never acts twice on what it sensed before its last action (a sensing
+  pipeline that lags makes the loop slower, never unstable). Without such a
+  frame for ``max_contact_age_s`` (a silent driver) the tick goes ahead
+  without contact, so the slide ends on the servo's lost rule;
+- the tick's target becomes a short replacing trajectory
+  (:func:`servo_step_trajectory`): one point, the IK of the target at rest,
+  ``T`` seconds from the start; ros2_control's joint_trajectory_controller
+  interpolates to it from its current state (position and velocity) and a new
+  one replaces it at the next tick. ``T`` is the shortest duration (≥ one
+  tick) whose cubic Hermite segment keeps every joint within its velocity
+  and acceleration limits and the tip within ``tip_speed_mps``, both from
+  rest and from the measured joint velocity, so each trajectory is within
+  the :class:`~tactile_driver.trajectory.MotionLimits` whatever the state it
+  replaces; the target is checked against the workspace box first.
+
+The slid length is the arm's: each tick adds the measured tip's advance
+along the tangent of the previous step, (p_k − p_{k−1})·t_{k−1}, and the
+servo's slid length is set to it each tick (its length and lap rules go by
+it), so a slide ends after the planned length *travelled* (an arm that lags its targets slides
+as far as planned, only slower). With an arm that reaches each target within
+the tick this is the servo's own sum of steps (the offline slide).
+
+The thinned stream (:class:`~tactile_driver.slide_servo.ContactThinner`,
+offered every frame with force ≥ ``min_force_n``, as offline) is what the
+commander publishes on ``/tactile/contacts``; :meth:`SlideLoop.finish`
+closes it with the last good contact (the end of the sensed arc), as
+:func:`tactile_sim.slide.simulate_slide` does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from tactile_driver.ik import IKSettings, solve_ik
+from tactile_driver.kinematics import ArmModel
+from tactile_driver.safety import WorkspaceBox
+from tactile_driver.slide_servo import (ContactSense, ContactThinner, SlideServo, SlideServoConfig, SlideStep,
+                                       SlideStop)
+from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, hermite_extrema
+
+
+@dataclass(frozen=True)
+class FrameContact:
+    """One frame of the driver's stream: its stamp (s) and the contact (None: released)."""
+
+    stamp_s: float
+    sense: Optional[ContactSense]
+
+
+class SlideLoop:
+    """The servo, its thinning and its tick schedule for one slide (module docstring)."""
+
+    def __init__(self, config: SlideServoConfig, direction_xyz: np.ndarray, length_m: float,
+                 box_min_xyz: np.ndarray, box_max_xyz: np.ndarray, start_s: float, planar: bool = False,
+                 max_contact_age_s: float = 0.25) -> None:
+        if not max_contact_age_s > 0:
+            raise ValueError(f"max_contact_age_s = {max_contact_age_s}: must be > 0")
+        cfg = config.validate()
+        # The tick limit guards against no progress: an arm that lags its targets needs more ticks.
+        max_ticks = int(np.ceil(6.0 * 3.0 * length_m / cfg.step_m)) + 10 * cfg.lost_ticks
+        self.servo = SlideServo(cfg, direction_xyz, length_m, box_min_xyz, box_max_xyz, planar=planar,
+                                max_ticks=max_ticks)
+        self.config = cfg
+        self.length_m = float(length_m)
+        self.progress_m = 0.0  # the measured advance along the slide (module docstring)
+        self._last_tip: Optional[np.ndarray] = None
+        self._last_tangent: Optional[np.ndarray] = None
+        self.thinner = ContactThinner(self.config.thin_distance_m, self.config.thin_angle_rad)
+        self.period_s = 1.0 / self.config.control_rate_hz
+        self.start_s = float(start_s)
+        self.max_contact_age_s = float(max_contact_age_s)
+        self.next_tick_s = self.start_s
+        self.latest: Optional[FrameContact] = None
+        self.last_good: Optional[FrameContact] = None  # the newest frame with force ≥ min_force_n
+        self.published: list[FrameContact] = []  # the thinned stream, in the order sensed
+        self._outbox: list[FrameContact] = []
+        self.tip_path: list[np.ndarray] = []
+        self.stop = None
+        self.frames = 0
+        self.last_command_s = self.start_s  # when the latest target was sent (the arm was at rest at the start)
+
+    # -- inputs -------------------------------------------------------------------
+    def on_frame(self, frame: FrameContact) -> None:
+        """A frame of the driver's stream; frames from before the slide began are ignored."""
+        if frame.stamp_s < self.start_s - 1e-9 or self.stop is not None:
+            return
+        if self.latest is not None and frame.stamp_s < self.latest.stamp_s:
+            return  # out of order: the newer one stands
+        self.latest = frame
+        self.frames += 1
+        s = frame.sense
+        if s is None or not (s.force_n >= self.config.min_force_n) or not np.all(np.isfinite(s.point_xyz)):
+            return
+        self.last_good = frame
+        if self.thinner.offer(s):
+            self._emit(frame)
+
+    def fresh(self) -> bool:
+        """The latest frame was sensed at or after the latest command (module docstring)."""
+        return self.latest is not None and self.latest.stamp_s >= self.last_command_s - 1e-9
+
+    def current(self, now_s: float) -> Optional[ContactSense]:
+        """The contact the servo sees now: the latest frame's if it is fresh (module docstring)."""
+        return self.latest.sense if self.fresh() else None
+
+    # -- the loop -----------------------------------------------------------------
+    def due(self, now_s: float) -> bool:
+        """A tick is due: its time has come and a fresh frame is in (or none came for
+        ``max_contact_age_s`` since the latest command)."""
+        if self.stop is not None or now_s < self.next_tick_s - 1e-9:
+            return False
+        return self.fresh() or now_s - self.last_command_s >= self.max_contact_age_s
+
+    def tick(self, now_s: float, tip_xyz: np.ndarray) -> SlideStep:
+        """One control tick; the next tick is one period later (missed ticks are skipped, not caught up)."""
+        self.next_tick_s = max(self.next_tick_s + self.period_s, now_s + 0.5 * self.period_s)
+        tip = np.asarray(tip_xyz, dtype=float).reshape(3)
+        self.tip_path.append(tip.copy())
+        if self._last_tip is not None:
+            self.progress_m += float((tip - self._last_tip) @ self._last_tangent)
+        # the servo's slid length is the measured one (module docstring): its length and lap rules,
+        # and its last step, go by where the arm is, not by the steps it was sent
+        self.servo.slid_m = self.progress_m
+        step = self.servo.step(tip, self.current(now_s))
+        if step.target_xyz is not None:
+            self.last_command_s = float(now_s)
+        self._last_tip, self._last_tangent = tip, self.servo.tangent.copy()  # this step's advance: next tick
+        if step.stop is not None:
+            self.stop = step.stop
+        return step
+
+    def abort(self) -> None:
+        """Stopped from outside (e-stop, watchdog, a target the arm cannot reach)."""
+        self.stop = self.stop or self.servo.stopped
+
+    def finish(self) -> list[FrameContact]:
+        """Close the stream: the last good contact, if it is not the last one published."""
+        last = self.last_good
+        if last is not None and (not self.published or np.linalg.norm(
+                self.published[-1].sense.point_xyz - last.sense.point_xyz) > 1e-9):
+            self._emit(last)
+        return self.take_published()
+
+    def take_published(self) -> list[FrameContact]:
+        """The stream's contacts not yet handed out, in order."""
+        out, self._outbox = self._outbox, []
+        return out
+
+    def _emit(self, frame: FrameContact) -> None:
+        self.published.append(frame)
+        self._outbox.append(frame)
+
+    # -- outcome ------------------------------------------------------------------
+    @property
+    def slid_m(self) -> float:
+        """The planned length reached (the servo stopped on LENGTH), else the measured advance."""
+        return self.length_m if self.stop is SlideStop.LENGTH else float(self.progress_m)
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.published)
+
+    @property
+    def last_contact(self) -> Optional[FrameContact]:
+        return self.published[-1] if self.published else None
+
+
+def servo_step_trajectory(model: ArmModel, limits: MotionLimits, box: WorkspaceBox, ik: IKSettings,
+                          q_now: np.ndarray, qd_now: Optional[np.ndarray], target_xyz: np.ndarray,
+                          min_duration_s: float, max_joint_step_rad: float = 0.3) -> TimedTrajectory:
+    """The replacing trajectory of one tick (module docstring): one point at rest, ``T`` s from the start.
+
+    Raises:
+        OutsideWorkspace: the target is outside the box.
+        TrajectoryError: no IK solution (NoSolutionFound is one), or a joint jump above
+            ``max_joint_step_rad`` (an IK branch flip is not a servo step).
+    """
+    target = np.asarray(target_xyz, dtype=float).reshape(3)
+    box.check(target[None])
+    q0 = np.asarray(q_now, dtype=float)
+    try:
+        q1 = solve_ik(model, target, q0, ik).q
+    except ValueError as exc:  # NoSolutionFound
+        raise TrajectoryError(str(exc)) from None
+    dq = q1 - q0
+    if float(np.max(np.abs(dq))) > max_joint_step_rad:
+        raise TrajectoryError(f"servo step: joint jump {float(np.max(np.abs(dq))):.3f} rad > {max_joint_step_rad}")
+    tip0 = model.fk(q0)[0]
+    dist = float(np.linalg.norm(target - tip0))
+    a, v = limits.acceleration_rad_s2, limits.velocity_rad_s
+    # from rest: |a| = 6|Δq|/T², |v| = 1.5|Δq|/T; the tip by the same 1.5 factor (a straight move)
+    T = max(float(min_duration_s), float(np.max(np.sqrt(6.0 * np.abs(dq) / a))),
+            float(np.max(1.5 * np.abs(dq) / v)), 1.5 * dist / limits.tip_speed_mps, 1e-3)
+    starts = [np.zeros_like(q0)]
+    if qd_now is not None and np.all(np.isfinite(qd_now)):
+        starts.append(np.asarray(qd_now, dtype=float))
+    zero = np.zeros_like(q0)
+    for _ in range(60):
+        ok = True
+        for v0 in starts:
+            vel, acc = hermite_extrema(np.array([0.0, T]), np.vstack([q0, q1]), np.vstack([v0, zero]))
+            ok &= bool(np.all(vel[0] <= v * (1 - 1e-9)) and np.all(acc[0] <= a * (1 - 1e-9)))
+        if ok:
+            break
+        T *= 1.2
+    else:
+        raise TrajectoryError("servo step: no duration within the joint limits from the current velocity")
+    return TimedTrajectory(np.array([T]), q1[None], zero[None], target[None])
