@@ -31,6 +31,8 @@ NODE_DEFAULTS = {
     "explorer": ("tactile_bringup", "explorer.yaml"),
 }
 MODES = ("2d", "3d")
+#: The explorer's touch_timeout_s with --touch slide (wall clock; the poke default is 60 s).
+SLIDE_TOUCH_TIMEOUT_S = 600.0
 
 #: The explorer's parameters that define the run (read from the files by the
 #: offline loop and the explorer node alike; the explorer also declares them).
@@ -129,9 +131,13 @@ class Experiment:
             o["soc_planner"]["strategy"] = self.strategy
         if self.alpha is not None:
             o["soc_planner"]["alpha"] = float(self.alpha)
+        o["explorer"] = {}
         if getattr(self, "touch", None) is not None:
             o["soc_planner"]["touch"] = str(self.touch)
-        o["explorer"] = {}
+            if self.touch == "slide":
+                # A slide is one long touch (up to slide_max_length_m at the servo's pace, which a
+                # loaded machine slows further): the explorer waits that long before re-issuing it.
+                o["explorer"]["touch_timeout_s"] = SLIDE_TOUCH_TIMEOUT_S
         if self.touches is not None:
             o["explorer"]["touches"] = int(self.touches)
         return o

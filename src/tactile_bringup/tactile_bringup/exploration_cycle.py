@@ -37,6 +37,8 @@ import numpy as np
 
 from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, TouchReport
 
+from .slide_stream import graph_slide, is_stream
+
 
 class Phase(enum.Enum):
     WAITING_FOR_START = "waiting_for_start"
@@ -181,13 +183,22 @@ class ExplorationCycle:
         obs_ns = report.observation_stamp_ns
         if obs_ns is None or obs_ns not in self._observations:
             return  # still on its way: tick() bounds the wait
+        extra = {}
+        if is_stream(report):  # a slide: every contact of its stream (tactile_bringup.slide_stream)
+            slide = graph_slide(report, self._observations)
+            if slide is None:
+                return  # some of the stream still on its way: tick() bounds the wait
+            for stamp in slide.stamps_ns:
+                self._observations.pop(stamp, None)
+            self._observations[obs_ns] = slide.observations[-1]
+            extra["slide"] = slide
         self.report = None
         self.retries = self.unreachable_in_row = 0
         record = self.run.add_touch(goal=self._goals.pop(report.goal_stamp_ns, None),
                                     observation=self._observations.pop(obs_ns), travel_m=report.travel_m,
                                     time_s=report.duration_s,
                                     decision_ms=self._decision_ms.pop(report.goal_stamp_ns, float("nan")),
-                                    path_xyz=self._paths.pop(report.goal_stamp_ns, None))
+                                    path_xyz=self._paths.pop(report.goal_stamp_ns, None), **extra)
         self.log.info(self.run.progress_line(record))
         self.last_obs_stamp_ns = obs_ns
         reason = self.run.stop_reason()

@@ -165,10 +165,18 @@ class RunRecorder:
         self.time_s += time_s
 
     def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float,
-                  path_xyz=None) -> dict:
+                  path_xyz=None, slide=None) -> dict:
         """Record a finished touch: its goal pose message and its observation point
-        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure)."""
+        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure).
+        ``slide`` (a :class:`tactile_bringup.slide_stream.GraphSlide`): the estimate takes its
+        whole stream in order, ``observation`` (its last contact) last."""
+        from .slide_stream import free_path
+
         self.add_travel(travel_m, time_s)
+        path_xyz = free_path(path_xyz, goal)  # without a slide goal's marker
+        for obs in (slide.observations[:-1] if slide is not None else []):
+            observe(self.estimator, np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
+                    np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float), True)
         contact = int(observation["label"]) == LABEL_CONTACT
         point = np.array([observation["x"], observation["y"], observation["z"]], dtype=float)
         normal = np.array([observation["normal_x"], observation["normal_y"], observation["normal_z"]])
@@ -178,7 +186,7 @@ class RunRecorder:
             target = np.array([p.x, p.y, p.z]) + self.standoff_m * quaternion_x_axis(xyzw(goal.pose.orientation))
         observe(self.estimator, point, normal, contact)
         record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
-                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz)
+                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz, slide=slide)
         self.touches.append(record)
         return record
 

@@ -36,6 +36,7 @@ from .cli_common import run_main
 from .cores import make_planner
 from .experiment import Experiment
 from .player import Recording
+from .slide_stream import graph_slide, is_stream, report_of
 from .progress import RunRecorder, observe, write_outputs
 
 
@@ -162,6 +163,15 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                 if goal_ns in done_goals:
                     continue  # a report sent again (durable topics): one touch
                 done_goals.add(goal_ns)
+                slide = None
+                if msg.message in ("contact", "free_space") and obs_ns in observations:
+                    report = report_of(msg.message, values)
+                    slide = graph_slide(report, observations) if is_stream(report) else None
+                    if slide is not None:  # a slide: its whole stream (tactile_bringup.slide_stream)
+                        for stamp, obs in zip(slide.stamps_ns[:-1], slide.observations[:-1]):
+                            used.add(stamp)
+                            taken.append(obs)
+                            observations.pop(stamp)
                 if msg.message in ("contact", "free_space") and obs_ns in observations:
                     if starts.get(goal_ns) is not None:
                         tip = np.asarray(starts[goal_ns], dtype=float)
@@ -169,7 +179,7 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                     used.add(obs_ns)
                     taken.append(observations[obs_ns])
                     record = run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,
-                                           decision_ms.get(goal_ns, float("nan")))
+                                           decision_ms.get(goal_ns, float("nan")), slide=slide)
                     if plan is not None:
                         offline = plan.target_xyz if plan.ok else np.full(3, np.nan)
                         decisions.append({"index": record["index"], "graph_target": record["target"],
