@@ -21,7 +21,7 @@ def test_quaternion_round_trip_and_interpolation_against_rodrigues():
     axis = rng.normal(size=3)
     R0, R1 = rotation_about(axis, 0.2), rotation_about(axis, 0.8)
     np.testing.assert_allclose(quat_to_matrix(matrix_to_quat(R1)), R1, atol=1e-12)
-    buf = PoseBuffer(max_age_s=5.0, tolerance_s=0.01)
+    buf = PoseBuffer(max_age_s=5.0, tolerance_s=0.01, max_gap_s=2.0)  # the math, not the gap rule
     buf.add(1.0, [0.0, 0.0, 0.0], matrix_to_quat(R0))
     buf.add(2.0, [1.0, 2.0, 3.0], matrix_to_quat(R1))
     p, R = buf.at(1.25)
@@ -173,17 +173,40 @@ def test_onset_ahead_of_the_poses_waits_for_its_pose():
     assert abs(c.point_xyz[0] - (tips[k][0] + 0.01)) < 0.001  # mapped with the pose of its own time
 
 
-def test_pending_onset_is_refused_when_its_pose_never_comes():
+def test_pose_buffer_does_not_interpolate_across_a_stall():
+    buf = PoseBuffer(max_age_s=5.0, tolerance_s=0.01, max_gap_s=0.1)
+    buf.add(1.0, [0.0, 0.0, 0.0], [0, 0, 0, 1])
+    buf.add(1.5, [0.1, 0.0, 0.0], [0, 0, 0, 1])
+    assert buf.at(1.25) is None  # 0.5 s without a pose: nobody knows where the finger was
+    np.testing.assert_allclose(buf.at(1.005)[0], [0.0, 0.0, 0.0])  # within tolerance of a pose: that pose
+    buf.add(1.55, [0.2, 0.0, 0.0], [0, 0, 0, 1])
+    np.testing.assert_allclose(buf.at(1.525)[0], [0.15, 0.0, 0.0])  # a regular bracket interpolates
+
+
+def test_pending_onset_holds_decided_through_until_its_pose_comes_or_is_passed():
+    """A lagging pose stream must not turn a contact into free space: the onset waits (however
+    long), holding decided_through before its frame; once poses pass its time without covering it
+    (a gap), it is refused and the re-armed detector reports the contact from a frame with a pose."""
     layout = ring_layout()
     model = SensorModel(layout, seed=0)
     wall = Plane([0.51, 0.0, 0.0], [-1.0, 0.0, 0.0], dim=2)
-    tips = [[0.45, 0.0, 0.06]] * 40 + [[0.5006, 0.0, 0.06]] * 80
+    tips = [[0.45, 0.0, 0.06]] * 40 + [[0.5006, 0.0, 0.06]] * 200
     frames = make_stream(model, wall, tips)
-    drv = SensorDriver(layout, config=DriverConfig(pose_wait_s=0.1))
-    drv.add_pose(10.0, tips[0], [0, 0, 0, 1])  # the pose stream stops here
-    out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames)]
-    assert sum(len(o.contacts) for o in out) == 0
-    assert drv.stats.refused_no_pose >= 2  # expired, re-armed, expired again
+    drv = SensorDriver(layout, config=DriverConfig(pose_wait_s=0.1, pose_tolerance_s=0.002))
+    drv.add_pose(10.0, tips[0], [0, 0, 0, 1])  # the pose stream stalls here
+    out = [drv.feed(f, 10.0 + 0.005 * k + 0.001) for k, f in enumerate(frames[:120])]
+    assert sum(len(o.contacts) for o in out) == 0 and drv.stats.refused_no_pose == 0
+    onset_s = 10.0 + 0.005 * 40  # the first frame at the wall
+    assert drv.decided_through_s < onset_s + 0.005 * 2  # held at the onset, 0.4 s of frames later
+    # the stream resumes at the present: its poses passed the onset without covering it
+    contacts = []
+    for k in range(120, 240):
+        t = 10.0 + 0.005 * k
+        contacts += drv.add_pose(t, tips[k], [0, 0, 0, 1]) or []
+        contacts += drv.feed(frames[k], t + 0.001).contacts
+    assert drv.stats.refused_no_pose == 1 and len(contacts) == 1
+    assert contacts[0].stamp_s >= 10.0 + 0.005 * 120 and abs(contacts[0].point_xyz[0] - 0.51) < 0.001
+    assert drv.decided_through_s >= 10.0 + 0.005 * 239
 
 
 def test_frames_queued_during_a_disconnect_are_stale_after_the_reconnect():

@@ -3,7 +3,9 @@
 Position: linear interpolation; orientation: quaternion slerp. A query time
 outside the buffered span by at most ``tolerance_s`` uses the nearest pose;
 further outside (or an empty buffer) gives None: no contact may be published
-without a fingertip pose at its time.
+without a fingertip pose at its time. Inside the span, two poses more than
+``max_gap_s`` apart do not interpolate (None): the stream stalled there, and a
+straight line between them is not where the finger was.
 """
 
 from __future__ import annotations
@@ -32,11 +34,12 @@ def slerp(q0: np.ndarray, q1: np.ndarray, u: float) -> np.ndarray:
 class PoseBuffer:
     """Time-ordered fingertip poses (world frame) of the last ``max_age_s`` seconds."""
 
-    def __init__(self, max_age_s: float = 2.0, tolerance_s: float = 0.02) -> None:
-        if max_age_s <= 0 or tolerance_s < 0:
-            raise ValueError("need max_age_s > 0 and tolerance_s >= 0")
+    def __init__(self, max_age_s: float = 2.0, tolerance_s: float = 0.02, max_gap_s: float = 0.1) -> None:
+        if max_age_s <= 0 or tolerance_s < 0 or max_gap_s <= 0:
+            raise ValueError("need max_age_s > 0, tolerance_s >= 0 and max_gap_s > 0")
         self.max_age_s = max_age_s
         self.tolerance_s = tolerance_s
+        self.max_gap_s = max_gap_s
         self._t: deque[float] = deque()
         self._p: deque[np.ndarray] = deque()
         self._q: deque[np.ndarray] = deque()
@@ -81,6 +84,12 @@ class PoseBuffer:
         if i >= len(times):
             return self._p[-1].copy(), quaternion_to_matrix(self._q[-1])
         t0, t1 = times[i - 1], times[i]
+        if t1 - t0 > self.max_gap_s:  # the stream stalled here: only a pose within tolerance counts
+            if t_s - t0 <= self.tolerance_s:
+                return self._p[i - 1].copy(), quaternion_to_matrix(self._q[i - 1])
+            if t1 - t_s <= self.tolerance_s:
+                return self._p[i].copy(), quaternion_to_matrix(self._q[i])
+            return None
         u = 0.0 if t1 <= t0 else (t_s - t0) / (t1 - t0)
         p = (1 - u) * self._p[i - 1] + u * self._p[i]
         return p, quaternion_to_matrix(slerp(self._q[i - 1], self._q[i], u))
