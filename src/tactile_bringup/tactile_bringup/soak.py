@@ -300,7 +300,9 @@ def print_result(res: dict, file=sys.stdout) -> None:
 
 
 def main(argv: Optional[list[str]] = None) -> int:
-    ap = Parser(prog="bench.sh soak", description=__doc__.split("\n\n")[0])
+    ap = Parser(prog="bench.sh soak", description="Long 2D and 3D graph runs (recorder on), sampled for the resident "
+                "memory of each node, the MCAP size and the decision time per touch; prints the curves every 10 "
+                "touches with a line fit and a verdict each, writes soak.png (docs/benchmarks.md, 'Long runs').")
     ap.add_argument("--touches-2d", type=integer, default=200, help="touches of the 2D run (0: no 2D run; default 200)")
     ap.add_argument("--touches-3d", type=integer, default=100, help="touches of the 3D run (0: no 3D run; default 100)")
     ap.add_argument("--seed", type=integer, default=1, help="seed of both runs (default 1)")
@@ -320,6 +322,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         ap.error(f"--interval {args.interval:g}: must be > 0")
     if args.seed < 0:
         ap.error(f"--seed {args.seed}: must be >= 0")
+    if args.max_minutes is not None and args.max_minutes <= 0:
+        ap.error(f"--max-minutes {args.max_minutes:g}: must be > 0")
+    if args.json and not Path(args.json).resolve().parent.is_dir():
+        ap.error(f"--json {args.json}: its folder does not exist")
     if args.from_json:
         try:
             earlier = json.loads(Path(args.from_json).read_text())
