@@ -301,7 +301,7 @@ class ScriptedArm:
 
 def _run_slide(arm):
     done, free = [], []
-    ex = TouchExecutor(arm, 0.03, 0.5, lambda p, s: free.append((p, s)), done.append, back_off_clearance_m=0.01,
+    ex = TouchExecutor(arm, 0.03, 0.5, lambda *a: free.append(a), done.append, back_off_clearance_m=0.01,
                        slide_servo=SlideServoConfig(), slide_approach_length_m=0.07)
     ex.submit(TouchRequest(7, np.array([0.4, 0.2, 0.06]), np.array([1.0, 0.0, 0.0]), np.zeros((1, 3)),
                            np.array([0.0, 1.0, 0.0]), 0.1))
