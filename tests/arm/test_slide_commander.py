@@ -1,0 +1,78 @@
+"""ArmCommander.slide in one process (no other nodes): the servo's steps go out as replacing
+trajectories, and the e-stop and the joint-state watchdog stop a slide like any motion."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from sensor_msgs.msg import JointState  # noqa: E402
+from std_msgs.msg import Bool  # noqa: E402
+
+from tactile_driver.commander_api import ArmCommander, CommanderConfig, TaskResult  # noqa: E402
+from tactile_driver.ik import IKSettings, solve_ik  # noqa: E402
+from tactile_driver.slide_loop import FrameContact  # noqa: E402
+from tactile_driver.slide_servo import ContactSense, SlideServoConfig  # noqa: E402
+
+
+@pytest.fixture
+def arm():
+    rclpy.init()
+    node = rclpy.create_node("slide_commander_test")
+    cmd = ArmCommander(node, CommanderConfig(planar=True, watchdog_timeout_s=0.3, publish_fingertip_pose=False))
+    sent = []
+    cmd._pub_traj.publish = sent.append  # what would go to the controller
+    cmd.sent = sent
+    cmd.q0 = solve_ik(cmd.model, np.array([0.45, 0.0, 0.06]), cmd.home, IKSettings()).q
+    try:
+        yield cmd
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+
+
+def _state(arm, t_s):
+    msg = JointState(name=list(arm.model.joint_names), position=[float(v) for v in arm.q0],
+                     velocity=[0.0] * arm.model.nq)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t_s), int(round((t_s % 1) * 1e9))
+    arm._on_joint_state(msg)
+
+
+def _frame(arm, t_s):
+    arm._slide.on_frame(FrameContact(t_s, ContactSense(np.array([0.46, 0.0, 0.06]), np.array([-1.0, 0, 0]), 0.15)))
+
+
+def test_slide_steps_replace_each_other_then_the_estop_stops_it(arm):
+    _state(arm, 1.0)
+    assert arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig())
+    start = arm._slide.start_s
+    _frame(arm, start + 0.001)
+    arm._slide_tick()
+    arm._slide.next_tick_s = -np.inf  # the node clock does not move here: make the next tick due
+    _frame(arm, start + 0.002)
+    arm._slide_tick()
+    steps = [m for m in arm.sent if m.points]
+    assert len(steps) == 2 and all(len(m.points) == 1 for m in steps)  # one short replacing point each
+    t = steps[0].points[0].time_from_start
+    assert t.sec == 0 and t.nanosec >= 10_000_000  # at least one tick long: the controller interpolates to it
+    arm._on_estop(Bool(data=True))
+    assert arm.is_task_complete() and arm.get_result() == TaskResult.ABORTED and arm.last_task.reason == "e-stop"
+    assert arm.sent[-1].points == []  # stop and hold
+    assert arm._slide is None and arm._slide_timer is None  # its loop and timer are gone
+    assert arm.last_task.extra["stop"] in ("aborted", "length")
+    assert not arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig())  # refused while engaged
+
+
+def test_stale_joint_states_stop_a_slide(arm):
+    _state(arm, 1.0)
+    assert arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig())
+    deadline = time.monotonic() + 5.0
+    while not arm.is_task_complete() and time.monotonic() < deadline:
+        time.sleep(0.05)
+        arm._update()  # the control tick (steady clock): no joint state for longer than the watchdog
+    assert arm.get_result() == TaskResult.ABORTED and "stale" in arm.last_task.reason
+    assert arm.last_task.joint_states_lost and arm.sent[-1].points == []
