@@ -181,6 +181,17 @@ def check_contradictions(exp: "Experiment") -> list[str]:
     if float(p["margin_m"]) >= float(p["standoff_m"]) + float(p["tip_radius_m"]):
         errors.append(f"soc_planner.margin_m = {p['margin_m']}: must be below standoff_m + tip_radius_m = "
                       f"{float(p['standoff_m']) + float(p['tip_radius_m']):g} m, or no pre-touch point is free")
+    if p.get("touch") == "slide":  # the servo is the commander's; the offline loop reads the same keys
+        from tactile_driver.slide_servo import SlideServoConfig
+
+        if abs(float(p["slide_speed_mps"]) - float(a["slide.slide_speed_mps"])) > 1e-12:
+            errors.append(f"soc_planner.slide_speed_mps = {p['slide_speed_mps']} and arm_commander."
+                          f"slide.slide_speed_mps = {a['slide.slide_speed_mps']}: must be equal (the planner's "
+                          "motion model and the commander's servo; set both)")
+        try:
+            SlideServoConfig.from_params(a, "slide.")
+        except ValueError as exc:
+            errors.append(f"arm_commander.{exc}")
     return errors
 
 
