@@ -13,8 +13,11 @@ from tactile_driver.trajectory import TimedTrajectory
 
 
 def _traj(length_m):
+    """A motion of ``length_m``; its joint 0 is the fake tip's height above the end (FakeArm.model.fk)."""
     tip = np.array([[0.0, 0.0, 0.0], [length_m, 0.0, 0.0]])
-    return TimedTrajectory(np.array([0.0, 1.0]), np.zeros((2, 7)), np.zeros((2, 7)), tip)
+    q = np.zeros((2, 7))
+    q[0, 0] = length_m
+    return TimedTrajectory(np.array([0.0, 1.0]), q, np.zeros((2, 7)), tip)
 
 
 class FakeArm:
@@ -26,7 +29,7 @@ class FakeArm:
         self.calls = []
         self.cfg = SimpleNamespace(dry_run=False, approach_speed_mps=0.02, approach_step_m=0.005)
         self.estop = EStopLatch()
-        self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06]), np.eye(3)))
+        self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06 + q[0]]), np.eye(3)))
         self.tip_xyz = np.zeros(3)
         self.odometer_m = 0.0
         self.motion_time_s = 0.0  # robot time in motions (each scripted verb takes 0.3 s)
@@ -87,7 +90,7 @@ class FakeArm:
 
 def run(arm):
     free, done = [], []
-    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s: free.append((p, s)), done.append)
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append((p, s, sweep)), done.append)
     ex.submit(TouchRequest(7, np.array([0.4, 0.2, 0.06]), np.array([0.0, 1.0, 0.0]), np.zeros((1, 3))))
     for _ in range(10):
         arm.t += 0.3
@@ -112,6 +115,8 @@ def test_free_space_touch_publishes_the_probe_end():
     free, done = run(arm)
     assert len(free) == 1 and done[0].outcome == "free_space"
     np.testing.assert_allclose(free[0][0], [0.4, 0.2, 0.06])
+    # the sweep: from the probe end back to the approach's first point (the fake approach: 20 mm)
+    np.testing.assert_allclose(free[0][2], [0.0, 0.0, 0.02], atol=1e-12)
     assert done[0].observation_stamp_ns == free[0][1]
     assert done[0].values()["observation_stamp_ns"] == str(free[0][1])
 
@@ -160,7 +165,7 @@ def test_a_failed_back_off_aborts(back_off, where):
 def test_estop_during_dwell_skips_the_retract():
     arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT])
     free, done = [], []
-    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s: free.append((p, s)), done.append)
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append((p, s, sweep)), done.append)
     ex.submit(TouchRequest(1, np.zeros(3), np.array([1.0, 0, 0]), np.zeros((1, 3))))
     ex.update()  # -> approach
     ex.update()  # contact -> dwell

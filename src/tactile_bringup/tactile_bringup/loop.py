@@ -91,7 +91,9 @@ class ExplorationLoop:
                 time_s += self.motion.path_contact_time_s(free_m + result.travel_m, back_m)
             t1 = time.perf_counter()
             point = result.point_xyz if result.contact else result.tip_xyz_at_stop
-            observe(self.estimator, point, result.normal_xyz, result.contact)
+            # a miss: the guarded approach swept free space from the pre-touch point to the probe end
+            sweep = None if result.contact else np.asarray(plan.pretouch_xyz, dtype=float) - point
+            observe(self.estimator, point, result.normal_xyz if result.contact else sweep, result.contact)
             stream, used = None, None
             if slide is not None:  # the slide's thinned contact stream, in the order sensed, with checkpoints
                 stream, used = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,

@@ -31,9 +31,13 @@ def _round(v: Sequence[float]) -> list:
 
 
 def observe(estimator, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], contact: bool) -> None:
-    """Feed one touch's observation to an estimator (contact or free-space point)."""
-    estimator.add_observation(np.asarray(point_xyz, dtype=float),
-                              None if not contact else np.asarray(normal_xyz, dtype=float),
+    """Feed one touch's observation to an estimator: a contact with its normal, or a free-space
+    point with its sweep vector in ``normal_xyz`` (from the point back to where the approach began;
+    zero or None: the point alone; ``tactile_gpis.estimator``)."""
+    normal = None if normal_xyz is None else np.asarray(normal_xyz, dtype=float).ravel()
+    if not contact and normal is not None and not (np.isfinite(normal).all() and np.any(normal != 0)):
+        normal = None
+    estimator.add_observation(np.asarray(point_xyz, dtype=float), normal,
                               LABEL_CONTACT if contact else LABEL_FREE_SPACE)
 
 

@@ -188,9 +188,11 @@ class ArmCommanderNode(Node):
         self.touches.submit(TouchRequest(decision.stamp_ns, position, rotation[:, 0], path_xyz,
                                          plan.slide_direction_xyz, plan.slide_length_m))
 
-    def _publish_free_space(self, tip_xyz: np.ndarray, observation_stamp_ns: int) -> None:
+    def _publish_free_space(self, tip_xyz: np.ndarray, observation_stamp_ns: int, sweep_xyz: np.ndarray) -> None:
+        """The probe end (label 0); its normal fields hold the sweep vector back to the approach's start."""
         point = np.zeros(1, dtype=fields.CONTACT_DTYPE)
         point["x"], point["y"], point["z"] = tip_xyz
+        point["normal_x"], point["normal_y"], point["normal_z"] = sweep_xyz
         point["label"] = fields.LABEL_FREE_SPACE
         self._pub_contacts.publish(to_pointcloud2(point, topics.WORLD_FRAME, time_from_ns(observation_stamp_ns)))
 

@@ -68,7 +68,7 @@ class TouchExecutor:
     """Runs queued touches one after the other; call :meth:`update` periodically."""
 
     def __init__(self, arm: ArmCommander, approach_length_m: float, dwell_s: float,
-                 publish_free_space: Callable[[np.ndarray, int], None],
+                 publish_free_space: Callable[[np.ndarray, int, np.ndarray], None],
                  publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01,
                  slide_servo=None, slide_approach_length_m: Optional[float] = None) -> None:
         if approach_length_m <= 0:
@@ -153,8 +153,10 @@ class TouchExecutor:
                 self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, task.contact_stamp_ns
             elif result == TaskResult.SUCCEEDED:
                 stamp_ns = int(round(arm.now_s() * 1e9))
-                # The probe end: FK of the final commanded joints (the arm is there within goal tolerance).
-                self._publish_free_space(arm.model.fk(task.traj.positions_rad[-1])[0], stamp_ns)
+                # The probe end: FK of the final commanded joints (the arm is there within goal tolerance),
+                # and the sweep back to the approach's first point (free space all along it).
+                end = arm.model.fk(task.traj.positions_rad[-1])[0]
+                self._publish_free_space(end, stamp_ns, arm.model.fk(task.traj.positions_rad[0])[0] - end)
                 self._outcome, self._obs_stamp_ns = OUTCOME_FREE_SPACE, stamp_ns
                 if slide:  # in free space: nothing to retract from; the finger stays at the probe end
                     self._end_xyz = arm.model.fk(task.traj.positions_rad[-1])[0]

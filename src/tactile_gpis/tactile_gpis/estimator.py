@@ -9,7 +9,11 @@ table top z = 0 bounds the object: the estimated solid is clipped to z >= 0
 Observations (label 1 contact, 0 free space, ``tactile_common.fields``):
   contact:    f(x) = 0 (noise ``noise.contact_var_m2``) and, if ``use_normals`` and a
               unit normal n is given, grad f(x) = n (noise ``noise.normal_var``);
-  free space: f(x) = ``free_space.value_m`` (noise ``noise.free_space_var_m2``).
+  free space: f(x) = ``free_space.value_m`` (noise ``noise.free_space_var_m2``) at the
+              point and, if a sweep vector v is given in the normal's place (from the
+              point back to where the finger's guarded approach began: it swept that
+              segment without contact), at every ``free_space.sweep_step_m`` along
+              x + t v, t in (0, 1] (0 = the point only).
 """
 
 from __future__ import annotations
@@ -55,6 +59,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "noise.normal_var": (1e-2, "variance of each component of a normal (gradient) observation", {"ge": 0.0}),
     "noise.free_space_var_m2": (1e-4, "variance of a free-space observation (m^2)", {"ge": 0.0}),
     "free_space.value_m": (0.01, "value of f observed at a free-space point (> 0, m)", {"gt": 0.0}),
+    "free_space.sweep_step_m": (0.0, "a free-space point with a sweep vector (the approach it ended) also observes "
+                                "f there every this many metres back along it (0 = the point only; off by default: "
+                                "the generated suite did not gain, docs/benchmarks.md)", {"ge": 0.0}),
     "use_normals": (True, "use contact normals as gradient observations"),
     "prior.type": ("auto", "'auto' (circle/sphere of 1/4 the smallest workspace extent at the workspace centre; 3D: resting on the table), 'given' (centre_m, radius_m), 'none'", {"choices": ("auto", "given", "none")}),
     "prior.centre_m": ([0.5, 0.0, 0.06], "'given' prior: centre x, y, z (m); 2D uses x, y", {"length": 3}),
@@ -143,6 +150,7 @@ class ShapeEstimator:
         self.free_value = float(p["free_space.value_m"])
         if not self.free_value > 0:
             raise ValueError(f"free_space.value_m must be > 0, got {self.free_value}")
+        self.sweep_step_m = _nonneg(p, "free_space.sweep_step_m")
         self.use_normals = bool(p["use_normals"])
         self.max_candidates = int(p["candidates.max_count"])
         self.table_margin_m = float(p["candidates.table_margin_m"])
@@ -261,6 +269,8 @@ class ShapeEstimator:
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
         self._obs.append(obs)
+        if label == LABEL_FREE_SPACE:
+            self._add_sweep(x, normal_xyz, obs[2])
         normal = np.full(3, np.nan) if normal_xyz is None else np.asarray(normal_xyz, float).ravel()
         self._inputs.append((pt, normal if normal.shape == (3,) else np.full(3, np.nan), int(label),
                              np.nan if value_var_m2 is None else float(value_var_m2)))
@@ -270,6 +280,31 @@ class ShapeEstimator:
         if self.method == "auto" and self.local is None and self.n_observations >= self.auto_min_contacts:
             self._switch_to_local()
         return True, ""
+
+    def _add_sweep(self, end: np.ndarray, sweep_xyz: Optional[np.ndarray], var_m2: float) -> None:
+        """The free-space rows along a probe's sweep (module docstring), each at least
+        ``duplicate_distance_m`` from every earlier observation and inside the workspace."""
+        v = None if sweep_xyz is None else np.asarray(sweep_xyz, float).ravel()[: self.dim]
+        if self.sweep_step_m <= 0 or v is None or v.shape != (self.dim,) or not np.isfinite(v).all():
+            return
+        length = float(np.linalg.norm(v))
+        n = int(np.floor(length / self.sweep_step_m + 1e-9))
+        near = np.vstack([self._points, end[None]])
+        for t in np.arange(1, n + 1) * (self.sweep_step_m / max(length, 1e-300)):
+            x = end + t * v
+            if (x < self.bounds_m[0]).any() or (x > self.bounds_m[1]).any():
+                break
+            if np.sqrt(((near - x) ** 2).sum(1).min()) < self.duplicate_distance_m:
+                continue
+            row = (x, self.free_value, var_m2, None, 0.0)
+            try:
+                self._model().add_observation(*row)
+            except FactorError:
+                continue  # a row the factor cannot take: the probe end itself is in
+            self._obs.append(row)
+            near = np.vstack([near, x])
+            self._points = np.vstack([self._points, x])
+
 
     # -- paths -----------------------------------------------------------------
     def _new_local(self) -> LocalGPIS:
