@@ -90,11 +90,39 @@ class _Leaf:
         self.rows = np.zeros(0, dtype=np.int64)  # global row ids inside the data box, in factor order
         self.gp = ExpertGP(kernel, dim, jitter)
         self.active = False  # factor built and maintained (only where the band or a query needs it)
-        # band nodes in the weight support: lattice ids, raw weights, K(nodes, rows), contribution
+        # band nodes in the weight support: lattice ids, raw weights, contribution k(node)^T alpha,
+        # and W = L^-1 K(rows, nodes) (gp.n, len(nodes)) in a buffer with spare rows (appends
+        # write rows, no copy): contribution = W^T beta, so an append needs no alpha
         self.nodes = np.zeros(0, dtype=np.int64)
         self.w = np.zeros(0)
-        self.kc = np.zeros((0, 0))
+        self._wbuf = np.zeros((0, 0))
         self.contrib = np.zeros(0)
+
+    @property
+    def W(self) -> np.ndarray:
+        """L^-1 K(rows, nodes) (gp.n, len(nodes)) (a view)."""
+        return self._wbuf[: self.gp.n]
+
+    def set_W(self, W: np.ndarray) -> None:
+        self._wbuf = np.zeros((len(W) + max(16, len(W) // 4), W.shape[1]))
+        self._wbuf[: len(W)] = W
+
+    def append_W_rows(self, R: np.ndarray, n_old: int) -> None:
+        """Rows n_old.. of W (after the factor grew by len(R) rows)."""
+        need = n_old + len(R)
+        if need > len(self._wbuf):
+            buf = np.zeros((need + max(16, need // 4), self._wbuf.shape[1]))
+            buf[:n_old] = self._wbuf[:n_old]
+            self._wbuf = buf
+        self._wbuf[n_old:need] = R
+
+    def append_W_cols(self, C: np.ndarray) -> None:
+        """Columns for new nodes (gp.n, k)."""
+        n = self.gp.n
+        buf = np.zeros((len(self._wbuf) if len(self._wbuf) >= n else n + 16, self._wbuf.shape[1] + C.shape[1]))
+        buf[:n, : self._wbuf.shape[1]] = self._wbuf[:n]
+        buf[:n, self._wbuf.shape[1]:] = C
+        self._wbuf = buf
 
     def weight(self, X: np.ndarray, grad: bool = False):
         """Raw partition-of-unity weight w(x) (N,) (and its gradient (N, d))."""
@@ -211,7 +239,7 @@ class LocalGPIS:
 
     def state_bytes(self) -> int:
         """Bytes held by the factors, caches, row arrays and lattice arrays (the state's size)."""
-        b = sum(lf.gp.nbytes() + lf.kc.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes for lf in self.leaves)
+        b = sum(lf.gp.nbytes() + lf._wbuf.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes for lf in self.leaves)
         b += self.anchor._L.nbytes + sum(v.nbytes for v in (self.anchor._V or []))
         b += self._X.nbytes + 5 * self._y.nbytes
         b += sum(a.nbytes for a in (self._band, self._num, self._wsum, self._mu_a_band, self._mu_a_lat,
@@ -274,16 +302,16 @@ class LocalGPIS:
         r = lf.rows
         lf.gp.build(self._X[r], self._t[r], self._resid[r], self._noise[r])
         lf.active = True
-        lf.kc = np.zeros((0, lf.gp.n))  # invariant for an active leaf: kc is (len(nodes), gp.n)
+        lf.set_W(np.zeros((lf.gp.n, 0)))  # invariant for an active leaf: W is (gp.n, len(nodes))
         if len(lf.nodes):
-            lf.kc = cross_cov(self.kernel, self._lattice[lf.nodes], np.full(len(lf.nodes), VALUE),
-                              lf.gp.X, lf.gp.t)
+            K = cross_cov(self.kernel, lf.gp.X, lf.gp.t, self._lattice[lf.nodes], np.full(len(lf.nodes), VALUE))
+            lf.set_W(lf.gp.solve(K) if lf.gp.n else K)
             self._update_contrib(lf)
 
     def _update_contrib(self, lf: _Leaf) -> None:
         if not len(lf.nodes):
             return
-        c = lf.kc @ lf.gp.alpha if lf.gp.n else np.zeros(len(lf.nodes))
+        c = lf.W.T @ lf.gp.beta if lf.gp.n else np.zeros(len(lf.nodes))
         self._num[lf.nodes] += lf.w * (c - lf.contrib)
         lf.contrib = c
 
@@ -310,11 +338,14 @@ class LocalGPIS:
             return
         if not lf.active:
             self._activate(lf)
-        K = cross_cov(self.kernel, P, np.full(len(P), VALUE), lf.gp.X, lf.gp.t)
-        c = K @ lf.gp.alpha if lf.gp.n else np.zeros(len(idx))
+        if lf.gp.n:
+            Wn = lf.gp.solve(cross_cov(self.kernel, lf.gp.X, lf.gp.t, P, np.full(len(P), VALUE)))
+            c = Wn.T @ lf.gp.beta
+        else:
+            Wn, c = np.zeros((0, len(idx))), np.zeros(len(idx))
+        lf.append_W_cols(Wn)
         lf.nodes = np.r_[lf.nodes, idx]
         lf.w = np.r_[lf.w, w]
-        lf.kc = np.vstack([lf.kc, K])
         lf.contrib = np.r_[lf.contrib, c]
         self._wsum[idx] += w
         self._num[idx] += w * c
@@ -372,11 +403,18 @@ class LocalGPIS:
         for lf in hit:
             lf.rows = np.r_[lf.rows, rows]
         nodes = np.unique(np.concatenate([lf.nodes for lf in act])) if act else np.zeros(0, np.int64)
-        K_nodes = cross_cov(self.kernel, self._lattice[nodes], np.full(len(nodes), VALUE), X, t)
+        K_nodes = cross_cov(self.kernel, X, t, self._lattice[nodes], np.full(len(nodes), VALUE))  # (B, q)
         for lf, st in zip(act, states):
-            lf.gp.commit(st)
-            lf.kc = np.hstack([lf.kc, K_nodes[np.searchsorted(nodes, lf.nodes)]])
-            self._update_contrib(lf)
+            n_old = lf.gp.n
+            if len(lf.nodes):  # W gains B rows; the contribution W^T beta gains their share
+                W2 = lf.gp.solve_rows(st, lf.W, K_nodes[:, np.searchsorted(nodes, lf.nodes)])
+                lf.gp.commit(st)
+                lf.append_W_rows(W2, n_old)
+                dc = W2.T @ st.beta
+                self._num[lf.nodes] += lf.w * dc
+                lf.contrib = lf.contrib + dc
+            else:
+                lf.gp.commit(st)
         owner = self._owner(x)
         owner.own.append(i)
         self._add_band_nodes(self._near_nodes(x))
