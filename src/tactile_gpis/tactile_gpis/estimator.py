@@ -69,6 +69,15 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "candidates.max_count": (200, "maximum number of touch candidates (farthest-point subsample)", {"ge": 1}),
     "candidates.table_margin_m": (0.005, "3D: candidates only above this height (m)", {"ge": 0.0}),
     "duplicate_distance_m": (0.001, "reject an observation this close to an earlier one (m)", {"ge": 0.0}),
+    "thinning.var_ratio": (0.0, "thin a contact whose predicted variance of f at its point is below this "
+                           "fraction of its value noise, whose |mean| there is within 2 noise sd and whose normal "
+                           "(if given) is within thinning.normal_angle_deg of the predicted one (0 = off)",
+                           {"ge": 0.0}),
+    "thinning.distance_m": (0.0, "thin a contact within this distance of an earlier contact whose normal is within "
+                            "thinning.normal_angle_deg of its own (both without normal: the distance alone; "
+                            "0 = off) (m)", {"ge": 0.0}),
+    "thinning.normal_angle_deg": (20.0, "thinning: normals this close (deg) count as consistent",
+                                  {"ge": 0.0, "le": 180.0}),
     "jitter": (1e-10, "added to the covariance diagonal of every new observation", {"ge": 0.0}),
     "method": ("exact", "'exact' (one GP, the whole lattice updated per contact), 'local' (local GP experts on "
                "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
@@ -155,6 +164,12 @@ class ShapeEstimator:
         self.max_candidates = int(p["candidates.max_count"])
         self.table_margin_m = float(p["candidates.table_margin_m"])
         self.duplicate_distance_m = _nonneg(p, "duplicate_distance_m")
+        self.thin_var_ratio = _nonneg(p, "thinning.var_ratio")
+        self.thin_distance_m = _nonneg(p, "thinning.distance_m")
+        angle = float(p["thinning.normal_angle_deg"])
+        if not 0.0 <= angle <= 180.0:
+            raise ValueError(f"thinning.normal_angle_deg must be in [0, 180], got {angle}")
+        self.thin_cos = float(np.cos(np.radians(angle)))
         self.method = str(p["method"])
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, got '{p['method']}'")
@@ -218,6 +233,9 @@ class ShapeEstimator:
         self._points = np.zeros((0, self.dim))
         self.n_observations = 0
         self.n_rejected = 0
+        self.n_thinned = 0
+        self._contact_points = np.zeros((0, self.dim))  # added contacts (thinning by distance)
+        self._contact_normals = np.zeros((0, self.dim))  # their unit normals (NaN: none)
         self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
 
     def add_observation(
@@ -235,7 +253,9 @@ class ShapeEstimator:
                 that an uncertain contact can be down-weighted.
 
         Returns:
-            (accepted, reason): reason says why it was rejected ('' if accepted).
+            (accepted, reason): reason says why it was rejected; '' if accepted, 'thinned: ...'
+            if it was accepted as consistent with the estimate but not added (``thinning.*``,
+            counted in ``n_thinned``).
         """
         ok, reason = self._add(point_xyz, normal_xyz, label, value_var_m2)
         if not ok:
@@ -264,6 +284,10 @@ class ShapeEstimator:
         else:
             obs = (x, 0.0, self.contact_var if value_var_m2 is None else float(value_var_m2),
                    self._unit_normal(normal_xyz), self.normal_var)
+            why = self._thinned(x, obs[3], obs[2])
+            if why:
+                self.n_thinned += 1
+                return True, f"thinned: {why}"
         try:
             self._model().add_observation(*obs)
         except FactorError as exc:
@@ -275,6 +299,10 @@ class ShapeEstimator:
         self._inputs.append((pt, normal if normal.shape == (3,) else np.full(3, np.nan), int(label),
                              np.nan if value_var_m2 is None else float(value_var_m2)))
         self._points = np.vstack([self._points, x])
+        if label == LABEL_CONTACT:
+            self._contact_points = np.vstack([self._contact_points, x])
+            self._contact_normals = np.vstack([self._contact_normals,
+                                               obs[3] if obs[3] is not None else np.full(self.dim, np.nan)])
         self.n_observations += 1
         self._version += 1
         if self.method == "auto" and self.local is None and self.n_observations >= self.auto_min_contacts:
@@ -305,6 +333,38 @@ class ShapeEstimator:
             near = np.vstack([near, x])
             self._points = np.vstack([self._points, x])
 
+    def _thinned(self, x: np.ndarray, normal: Optional[np.ndarray], value_var: float) -> str:
+        """Why the contact (x, unit normal or None, value noise) adds nothing new ('' = add it).
+
+        By distance: within ``thinning.distance_m`` of an earlier contact with a consistent
+        normal (angle <= ``thinning.normal_angle_deg``; both without normal: consistent).
+        By variance: the predicted variance of f at x is below ``thinning.var_ratio`` times
+        the value noise, the predicted |mean| is within 2 noise sd (the contact agrees with
+        the estimate) and, with a normal, the predicted normal is consistent with it.
+        """
+        if self.thin_distance_m > 0 and len(self._contact_points):
+            d2 = ((self._contact_points - x) ** 2).sum(1)
+            near = np.flatnonzero(d2 < self.thin_distance_m ** 2)
+            if len(near):
+                nn = self._contact_normals[near]
+                ok = np.isnan(nn[:, 0]) if normal is None else np.nan_to_num(nn @ normal, nan=-2.0) >= self.thin_cos
+                if ok.any():
+                    return f"{1e3 * np.sqrt(d2[near[ok]].min()):.2f} mm from a consistent earlier contact"
+        if self.thin_var_ratio > 0 and self.n_observations:
+            P = x[None]
+            if self.local is not None:
+                mu, var, g = self.local.predict(P, return_var=True, return_grad=normal is not None) \
+                    if normal is not None else (*self.local.predict(P), None)
+            else:
+                mu, var = self.gp.predict(P)
+                g = self.gp.predict_gradient(P) if normal is not None else None
+            consistent = True
+            if g is not None:
+                gn = float(np.linalg.norm(g[0]))
+                consistent = gn > 0 and float(g[0] @ normal) / gn >= self.thin_cos
+            if consistent and var[0] < self.thin_var_ratio * value_var and abs(mu[0]) <= 2.0 * np.sqrt(value_var):
+                return f"predicted variance {var[0]:.2e} m^2 below {self.thin_var_ratio:g} x its noise"
+        return ""
 
     # -- paths -----------------------------------------------------------------
     def _new_local(self) -> LocalGPIS:
