@@ -83,7 +83,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
                "local.auto_min_contacts observations, then local)", {"choices": METHODS}),
     "local.auto_min_contacts": (300, "'auto': observations from which the local path takes over", {"ge": 1}),
-    "local.leaf_capacity_2d": (96, "local, 2D: observations in a quadtree cell before it splits", {"ge": 1}),
+    "local.leaf_capacity_2d": (200, "local, 2D: observations in a quadtree cell before it splits", {"ge": 1}),
     "local.leaf_capacity_3d": (32, "local, 3D: observations in an octree cell before it splits", {"ge": 1}),
     "local.context_m_2d": (0.02, "local, 2D: an expert sees the data at least this far beyond its cell (m)",
                            {"gt": 0.0}),
