@@ -160,12 +160,16 @@ def test_ctrl_c_keeps_the_report_and_resume_completes_the_run(domain_env, tmp_pa
     # Travel and time go on from where they were; the resumed session starts at the start position.
     n = len(cut["touches"])
     assert whole["touches"][n]["travel_m"] > cut["touches"][-1]["travel_m"]
-    # The same seed uninterrupted: the same budget and about the same estimate at the end.
+    # The same seed uninterrupted: the same first touch (graph runs of one seed sense it identically),
+    # the same budget, and an estimate at the end no worse than 0.05 below it (after the resume the
+    # runs part: the resumed session starts at the start position, so its travel costs differ).
     k_out, k_result = kidney_run
     assert k_result.returncode == 0, k_result.stderr[-2000:]
     straight = json.loads((k_out / "report.json").read_text())
     assert len(straight["touches"]) == len(whole["touches"])
-    assert whole["summary"]["final_iou"] == pytest.approx(straight["summary"]["final_iou"], abs=0.05)
+    assert np.allclose(whole["touches"][0]["target"], straight["touches"][0]["target"], atol=5e-4)
+    assert whole["summary"]["final_iou"] >= straight["summary"]["final_iou"] - 0.05, \
+        (whole["summary"]["final_iou"], straight["summary"]["final_iou"])
     # The recordings of both sessions re-analyse to the resumed run's final estimate.
     re = subprocess.run(["bash", str(ROOT / "scripts/replay.sh"), str(out / "run.mcap"), "--offline"],
                         env=domain_env, capture_output=True, text=True, timeout=300)
