@@ -148,17 +148,19 @@ def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
     tip = np.array([0.38, -0.12, 0.06]) if dim == 2 else np.array([0.42, -0.08, 0.16])
     planner.plan(est.map_array(), tip)  # warm-up
     upd, mp_, pl, cpu = [], [], [], []
+    parts_cpu: list[tuple[float, float, float]] = []  # update, map, plan (process CPU)
     status = ""
     for i in range(n, n + reps):
         c0 = time.process_time()
         t0 = time.perf_counter()
         ok, why = est.add_observation(pts[i], nrm[i], 1)
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         m = est.map_array()
-        t2 = time.perf_counter()
+        t2, c2 = time.perf_counter(), time.process_time()
         res = planner.plan(m, tip)
         t3 = time.perf_counter()
         cpu.append(time.process_time() - c0)
+        parts_cpu.append((c1 - c0, c2 - c1, time.process_time() - c2))
         if not ok:
             raise RuntimeError(why)
         upd.append(t1 - t0)
@@ -169,6 +171,7 @@ def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
     return {"kind": "decision", "dim": dim, "n": n, "normals": True, "method": method,
             "active_method": est.active_method, "update_ms": med(upd), "map_ms": med(mp_), "plan_ms": med(pl),
             "decision_ms": med(np.array(upd) + np.array(mp_) + np.array(pl)), "decision_cpu_ms": med(cpu),
+            **{f"{k}_cpu_ms": med(np.array(parts_cpu)[:, j]) for j, k in enumerate(("update", "map", "plan"))},
             "status": status, "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
 
 
@@ -185,7 +188,8 @@ def run_decisions(ns: list[int], methods: list[str], reps: int, exact_max_n: int
                 records.append(r)
                 print(f"decision {dim}D n={n:4d} {method:5s} | update {r['update_ms']:8.2f} ms | map "
                       f"{r['map_ms']:7.1f} ms | plan {r['plan_ms']:7.1f} ms | decision {r['decision_ms']:8.1f} ms "
-                      f"(cpu {r['decision_cpu_ms']:.1f}) | {r['status']} | peak RSS {r['peak_rss_mb']:.0f} MB",
+                      f"(cpu {r['decision_cpu_ms']:.1f} = update {r['update_cpu_ms']:.1f} + map {r['map_cpu_ms']:.1f} "
+                      f"+ plan {r['plan_cpu_ms']:.1f}) | {r['status']} | peak RSS {r['peak_rss_mb']:.0f} MB",
                       flush=True)
     for (dim, n), ms in DECISION_GOALS_MS.items():
         for r in (r for r in records if r["dim"] == dim and r["n"] == n and r["method"] == "local"):
