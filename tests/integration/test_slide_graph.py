@@ -83,22 +83,34 @@ def check_slide_run(out: Path, env: dict) -> None:
     assert len(contacts) > 2 * TOUCHES, len(contacts)
     ellipse = make_object("ellipse", mode="2d")
     assert np.abs(ellipse.sdf(np.array(contacts))).max() < 1.5e-3
-    # every trajectory within the commander's limits and box; the servo's steps (first point later
-    # than 0: the controller starts from its state) checked from the state recorded before them
+    # every trajectory within the commander's limits and box. A servo step (first point later than 0)
+    # starts from the arm's state when it arrives, at rest: the recorder takes the 100 Hz joint states
+    # up to a second late on a loaded machine, so the recording cannot say which state the commander
+    # planned from; the step must be safe from at least one state recorded within 1 s of it (the
+    # graph tests of tests/faults check the start strictly, from their own subscription).
     steps = 0
     state_t = np.array([t for t, _ in states])
+    probe = _monitor(out)
     for t_ns, msg in trajectories:
         if not msg.points:
             continue  # stop and hold
         times = [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in msg.points]
         q = [list(p.positions) for p in msg.points]
         qd = [list(p.velocities) for p in msg.points]
-        q_now = None
-        if times[0] > 0:
-            steps += 1
+        if times[0] <= 0:
+            monitor.check(msg.joint_names, times, q, qd)
+            continue
+        steps += 1
+        near = [states[k][1] for k in np.flatnonzero(np.abs(state_t - t_ns) <= 1e9)]
+        found = None
+        for q_now in near:
+            found = probe.check(msg.joint_names, times, q, qd, q_now=q_now)
+            if not found:
+                break
+        probe.violations.clear()
+        if found is None or found:  # no state near it, or unsafe from every one: a violation
             k = int(np.searchsorted(state_t, t_ns, side="right")) - 1
-            q_now = states[max(k, 0)][1]
-        monitor.check(msg.joint_names, times, q, qd, q_now=q_now)
+            monitor.check(msg.joint_names, times, q, qd, q_now=states[max(k, 0)][1])
     assert monitor.violations == [], "\n".join(map(str, monitor.violations[:10]))
     assert steps > 10, "the slides were driven by short replacing trajectories"
 
