@@ -509,14 +509,20 @@ class ArmCommander:
         if self._on_state is not None:
             self._on_state(q, p, msg.header.stamp)
 
-    def _on_contacts(self, msg: PointCloud2) -> None:
+    def _contact_points(self, msg: PointCloud2, what: str) -> Optional[np.ndarray]:
+        """The label-1 points of a contact cloud (None, counted and logged, if it does not decode)."""
         try:
             points = from_pointcloud2(msg, list(fields.CONTACT_DTYPE.names))
         except PointCloudError as exc:
             self.counters["invalid_contacts"] += 1
-            self.log.warning(f"invalid contact cloud ignored: {exc}", throttle_duration_sec=5.0)
+            self.log.warning(f"invalid {what} ignored: {exc}", throttle_duration_sec=5.0)
+            return None
+        return points[points["label"] == fields.LABEL_CONTACT]
+
+    def _on_contacts(self, msg: PointCloud2) -> None:
+        hits = self._contact_points(msg, "contact cloud")
+        if hits is None:
             return
-        hits = points[points["label"] == fields.LABEL_CONTACT]
         if len(hits) and (msg.header.frame_id != topics.WORLD_FRAME or not np.all(np.isfinite(fields.xyz(hits)))):
             # A contact that is not a place in the world cannot stop an approach (the touch would end
             # without an observation); the driver never sends one.
@@ -546,14 +552,10 @@ class ArmCommander:
         """The driver's per-frame contact stream (an empty cloud: released); used while sliding."""
         if self._slide is None:
             return
-        try:
-            points = from_pointcloud2(msg, list(fields.CONTACT_DTYPE.names))
-        except PointCloudError as exc:
-            self.counters["invalid_contacts"] += 1
-            self.log.warning(f"invalid contact frame ignored: {exc}", throttle_duration_sec=5.0)
+        hits = self._contact_points(msg, "contact frame")
+        if hits is None:
             return
         t = arm_msgs.stamp_ns(msg.header.stamp) * 1e-9
-        hits = points[points["label"] == fields.LABEL_CONTACT]
         if not len(hits):
             return self._slide.on_frame(FrameContact(t, None))
         point, normal = fields.xyz(hits[:1])[0], fields.normals(hits[:1])[0]
