@@ -149,5 +149,16 @@ def test_prepare_refuses_what_cannot_be_resumed(run_dir, tmp_path):
     with pytest.raises(ValueError, match="already made 3 touches of its budget 2"):
         prepare(out, touches=2)
     (out / "run.mcap").write_bytes(b"not mcap at all")
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="not a recording"):
         prepare(out)
+    assert (out / "run.mcap").read_bytes() == b"not mcap at all"  # nothing of the user's is overwritten
+
+
+def test_prepare_recovers_a_cut_recording_and_keeps_the_cut_file(run_dir):
+    out, _ = run_dir
+    whole = (out / "run.mcap").read_bytes()
+    (out / "run.mcap").write_bytes(whole[: len(whole) * 2 // 3])  # killed while writing: no summary
+    lines = []
+    plan = prepare(out, log=lines.append)
+    assert (out / "run.mcap.cut").read_bytes() == whole[: len(whole) * 2 // 3]
+    assert any("was cut" in line for line in lines) and plan.touches_before >= 1

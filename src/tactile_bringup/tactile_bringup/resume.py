@@ -70,15 +70,25 @@ def run_files(params_dir: Path) -> list[Path]:
 
 
 def _recover_cut(path: Path, log) -> None:
+    """A recording cut by a crash is rewritten whole (every message up to the cut); the cut file is
+    kept beside it as ``<name>.cut``. A file nothing can be read from is left as it is (ValueError)."""
     try:
         Recording(path)
     except ValueError as exc:
         if "not finalised" not in str(exc) and "not a readable" not in str(exc):
             raise
-        tmp = path.with_suffix(".recovering")
-        n = recover(path, tmp)
+        tmp = path.with_name(path.name + ".recovering")
+        try:
+            n = recover(path, tmp)
+        except Exception as err:  # noqa: BLE001 - whatever the reader makes of a damaged file
+            tmp.unlink(missing_ok=True)
+            raise ValueError(f"{path}: cannot be read or recovered ({err})") from None
+        if n == 0:
+            tmp.unlink(missing_ok=True)
+            raise ValueError(f"{path}: not a recording (nothing in it can be recovered); it is left as it is")
+        path.replace(path.with_name(path.name + ".cut"))
         tmp.replace(path)
-        log(f"{path.name} was cut (the run was killed): recovered {n} messages")
+        log(f"{path.name} was cut (the run was killed): recovered {n} messages; the cut file is {path.name}.cut")
 
 
 def prepare(run_dir: Path, touches: Optional[int] = None, log=lambda line: print(line, file=sys.stderr)
