@@ -41,6 +41,13 @@ def observe(estimator, point_xyz: np.ndarray, normal_xyz: Optional[np.ndarray], 
                               LABEL_CONTACT if contact else LABEL_FREE_SPACE)
 
 
+def observe_record(estimator, obs: np.ndarray) -> None:
+    """:func:`observe` of one CONTACT_DTYPE record (a recorded or restored observation)."""
+    observe(estimator, np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
+            np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float),
+            int(obs["label"]) == LABEL_CONTACT)
+
+
 def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
     """The free-space path the finger followed, (K, 3) rounded to 0.1 mm: all of it, or
     its first ``followed_m`` metres (a path that met the object stopped there)."""
@@ -156,9 +163,7 @@ class RunRecorder:
         (``report`` with its ``resume`` entry, :mod:`tactile_bringup.resume`) and every
         observation its estimate took (CONTACT_DTYPE, in order)."""
         for obs in observations:
-            observe(self.estimator, np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
-                    np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float),
-                    int(obs["label"]) == LABEL_CONTACT)
+            observe_record(self.estimator, obs)
         self.touches = list(report["touches"])
         self.travel_m = float(report["resume"]["travel_m"])
         self.time_s = float(report["resume"]["time_s"])

@@ -26,7 +26,7 @@ from rclpy.serialization import deserialize_message
 
 from tactile_common import topics
 from tactile_common.cycle_msgs import request_from_msg
-from tactile_common.fields import CONTACT_DTYPE, LABEL_CONTACT
+from tactile_common.fields import CONTACT_DTYPE
 from tactile_common.params_file import node_params
 from tactile_common.pointcloud import from_pointcloud2
 from tactile_common.stamps import stamp_ns
@@ -37,7 +37,7 @@ from .cores import make_planner
 from .experiment import Experiment
 from .player import Recording
 from .slide_stream import graph_slide, is_stream, report_of
-from .progress import RunRecorder, observe, write_outputs
+from .progress import RunRecorder, observe_record, write_outputs
 
 
 def run_params_files(bag: Path) -> list[Path]:
@@ -112,16 +112,10 @@ def rebuild(bag: Path, out_dir: Path, user_params: Sequence[Path] = (), evaluate
         orphans = _replay_session(session, exp, run, planner, decisions, taken)
         if k + 1 < len(sessions) or resuming:
             for stamp in sorted(orphans):
-                observe(run.estimator, *_point_normal(orphans[stamp]))
+                observe_record(run.estimator, orphans[stamp])
                 taken.append(orphans[stamp])
     observations = np.array(taken, dtype=CONTACT_DTYPE) if taken else np.zeros(0, dtype=CONTACT_DTYPE)
     return Rebuilt(exp, run, decisions, observations, len(sessions))
-
-
-def _point_normal(obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    return (np.array([obs["x"], obs["y"], obs["z"]], dtype=float),
-            np.array([obs["normal_x"], obs["normal_y"], obs["normal_z"]], dtype=float),
-            int(obs["label"]) == LABEL_CONTACT)
 
 
 def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, planner, decisions: list,
