@@ -50,12 +50,12 @@ from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_s, time_from_ns
 from tactile_driver import arm_msgs
 from tactile_driver.contact import back_off_target
-from tactile_driver.ik import IKSettings
-from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, home_configuration
-from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog, WorkspaceBox
+from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
+from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS
+from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog
 from tactile_driver.slide_loop import FrameContact, SlideLoop, servo_step_trajectory
 from tactile_driver.slide_servo import ContactSense, SlideServoConfig
-from tactile_driver.trajectory import MotionLimits, TimedTrajectory, TrajectoryError, plan_tip_path, time_parameterize
+from tactile_driver.trajectory import TimedTrajectory, TrajectoryError
 
 
 class TaskResult(enum.Enum):
@@ -129,12 +129,9 @@ class ArmCommander:
         self.node = node
         self.cfg = c = config
         self.log = node.get_logger()
-        self.model = ArmModel(c.urdf_path, list(c.joint_names), c.flange_frame, c.tip_offset_m)
-        self.box = WorkspaceBox.from_params(c.box_x_m, c.box_y_m, c.box_z_m, c.table_z_m, c.table_margin_m, c.tip_radius_m)
-        self.limits = MotionLimits.for_model(self.model, list(c.max_joint_velocity_rad_s),
-                                             list(c.max_joint_acceleration_rad_s2), c.tip_speed_mps)
-        self.ik = IKSettings(tol_m=c.ik_tol_m, max_tilt_rad=c.max_tilt_rad)
-        self.home = home_configuration(self.model, c.home_rad)
+        self.motions = ArmMotions(c)  # the plans every verb sends (ROS-free; the offline rig uses it too)
+        self.model, self.box, self.limits = self.motions.model, self.motions.box, self.motions.limits
+        self.ik, self.home = self.motions.ik, self.motions.home
         self.estop = EStopLatch()
         self.watchdog = Watchdog(c.watchdog_timeout_s)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -215,19 +212,9 @@ class ArmCommander:
         return self._start("retract", None, self.cfg.approach_speed_mps, self.cfg.approach_step_m, traj=traj)
 
     def plan_joint_move(self, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
-        """A joint-space straight line from the planning start to ``q_goal``, tip steps ≤ ``step_m``,
-        rest to rest within the joint limits and ``speed_mps`` at the tip. Raises OutsideWorkspace."""
-        q0 = self._plan_start()[0]
-        q1 = np.asarray(q_goal, dtype=float)
-        span_m = float(np.linalg.norm(self.model.fk(q1)[0] - self.model.fk(q0)[0]))
-        n = max(2, int(np.ceil(span_m / step_m - 1e-9)) + 1)  # robust at whole multiples (see densify)
-        qs = q0 + (q1 - q0) * np.linspace(0.0, 1.0, n)[:, None]
-        qs[-1] = q1  # exactly
-        tip = np.array([self.model.fk(q)[0] for q in qs])
-        self.box.check(tip[1:])
-        limits = MotionLimits(self.limits.lower_rad, self.limits.upper_rad, self.limits.velocity_rad_s,
-                              self.limits.acceleration_rad_s2, speed_mps)
-        return time_parameterize(qs, tip, limits)
+        """A joint-space straight line from the planning start to ``q_goal`` (:meth:`ArmMotions.joint_move`).
+        Raises OutsideWorkspace."""
+        return self.motions.joint_move(self._plan_start()[0], q_goal, speed_mps, step_m)
 
     def back_off(self, contact_xyz: np.ndarray, clearance_m: float, contact_stamp_ns: Optional[int] = None) -> bool:
         """Leave a contact met on a free-space path, at approach speed. Contacts are ignored meanwhile.
@@ -343,14 +330,9 @@ class ArmCommander:
     def _path_point_before(self, contact_stamp_ns: Optional[int], clearance_m: float) -> Optional[np.ndarray]:
         """Joints of the last path waypoint ≥ ``clearance_m`` of tip travel before the contact, or None."""
         task = self._last
-        if contact_stamp_ns is None or task is None or task.kind != "follow_path" or len(task.traj.times_s) < 2:
+        if contact_stamp_ns is None or task is None or task.kind != "follow_path":
             return None
-        t_contact = contact_stamp_ns * 1e-9 - task.start_s
-        tip = task.traj.tip_xyz
-        travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
-        at_contact = np.interp(t_contact, task.traj.times_s, travelled)
-        ok = np.flatnonzero(travelled <= at_contact - clearance_m)
-        return None if len(ok) == 0 else np.array(task.traj.positions_rad[ok[-1]], dtype=float)
+        return path_point_before(task.traj, task.start_s, contact_stamp_ns * 1e-9, clearance_m)
 
     def stop(self) -> None:
         """Stop now and hold (empty trajectory); the current task ends CANCELED."""
@@ -386,14 +368,7 @@ class ArmCommander:
              step_m: Optional[float] = None) -> TimedTrajectory:
         """Check the box and plan a trajectory (no motion). Raises OutsideWorkspace / TrajectoryError."""
         q0 = self._plan_start()[0] if q_start is None else np.asarray(q_start, dtype=float)
-        path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
-        self.box.check(path)
-        limits = MotionLimits(self.limits.lower_rad, self.limits.upper_rad, self.limits.velocity_rad_s,
-                              self.limits.acceleration_rad_s2, speed_mps or self.cfg.tip_speed_mps)
-        traj = plan_tip_path(self.model, path, q0, limits, step_m or self.cfg.waypoint_step_m, self.ik,
-                             self.cfg.max_joint_step_rad)
-        self.box.check(traj.tip_xyz[1:])
-        return traj
+        return self.motions.tip_path(path_xyz, q0, speed_mps, step_m)
 
     # -- internals ----------------------------------------------------------------
     def now_s(self) -> float:
@@ -445,17 +420,8 @@ class ArmCommander:
         return True
 
     def _start_time_ns(self, now_ns: int) -> int:
-        """The start time of a trajectory sent now (0: on receipt, the ros2_control default).
-
-        With ``start_lead_s`` the controller starts it at a set time, on a multiple of
-        ``start_grid_s``: the simulated rig then samples every motion at the same offsets from
-        its start and from the same joints, whatever the latency was (determinism).
-        """
-        if self.cfg.start_lead_s <= 0:
-            return 0
-        t_ns = now_ns + int(round(self.cfg.start_lead_s * 1e9))
-        grid_ns = int(round(self.cfg.start_grid_s * 1e9))
-        return -(-t_ns // grid_ns) * grid_ns if grid_ns > 0 else t_ns
+        """The start time of a trajectory sent now (0: on receipt; :func:`timed_start_ns`)."""
+        return timed_start_ns(now_ns, self.cfg.start_lead_s, self.cfg.start_grid_s)
 
     def _halt(self, result: TaskResult, reason: str) -> None:
         """Send the stop (empty trajectory: hold position) and end the task."""

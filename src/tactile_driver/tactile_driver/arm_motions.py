@@ -1,0 +1,103 @@
+"""The arm commander's motion plans, ROS-free: what every verb sends, as a function of the joints.
+
+:class:`ArmMotions` holds the arm model, the safety box, the joint and tip
+limits and the IK settings of a :class:`~tactile_driver.commander_api.CommanderConfig`,
+and plans (world frame, metres, radians, seconds):
+
+- :meth:`tip_path`: a tip polyline from given joints (box-checked, IK per
+  waypoint, time-parameterised rest to rest): the free-space path, the
+  guarded approach, a back-off away from a contact;
+- :meth:`joint_move`: a joint-space straight line to given joints (the
+  retract, a back-off along a path), tip steps bounded, every tip waypoint
+  box-checked;
+- :func:`path_point_before`: the last waypoint of a followed path at least a
+  clearance of tip travel before a contact (where a path back-off goes).
+
+The arm commander sends these plans; the offline loop's simulated rig
+(:mod:`tactile_bringup.rig_touch`) plans its touches with the same object, so
+both run the same joint trajectories.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Optional
+
+import numpy as np
+
+from tactile_driver.ik import IKSettings
+from tactile_driver.kinematics import ArmModel, home_configuration
+from tactile_driver.safety import WorkspaceBox
+from tactile_driver.trajectory import MotionLimits, TimedTrajectory, plan_tip_path, time_parameterize
+
+
+class ArmMotions:
+    """Model, box, limits and IK of one commander configuration, and the plans made with them."""
+
+    def __init__(self, config: Any) -> None:
+        c = self.cfg = config
+        self.model = ArmModel(c.urdf_path, list(c.joint_names), c.flange_frame, c.tip_offset_m)
+        self.box = WorkspaceBox.from_params(c.box_x_m, c.box_y_m, c.box_z_m, c.table_z_m, c.table_margin_m,
+                                            c.tip_radius_m)
+        self.limits = MotionLimits.for_model(self.model, list(c.max_joint_velocity_rad_s),
+                                             list(c.max_joint_acceleration_rad_s2), c.tip_speed_mps)
+        self.ik = IKSettings(tol_m=c.ik_tol_m, max_tilt_rad=c.max_tilt_rad)
+        self.home = home_configuration(self.model, c.home_rad)
+
+    def _limits(self, speed_mps: Optional[float]) -> MotionLimits:
+        lim = self.limits
+        return MotionLimits(lim.lower_rad, lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2,
+                            speed_mps or self.cfg.tip_speed_mps)
+
+    def tip_path(self, path_xyz: np.ndarray, q_start: np.ndarray, speed_mps: Optional[float] = None,
+                 step_m: Optional[float] = None) -> TimedTrajectory:
+        """The tip along ``path_xyz`` (K, 3) from joints ``q_start``, at up to ``speed_mps`` (default the
+        tip speed), IK waypoints ≤ ``step_m`` apart (default ``waypoint_step_m``).
+
+        Raises:
+            OutsideWorkspace: a path point or a planned tip waypoint is outside the box.
+            TrajectoryError: IK failed or a joint limit would be broken.
+        """
+        path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+        self.box.check(path)
+        traj = plan_tip_path(self.model, path, np.asarray(q_start, dtype=float), self._limits(speed_mps),
+                             step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad)
+        self.box.check(traj.tip_xyz[1:])
+        return traj
+
+    def joint_move(self, q_start: np.ndarray, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
+        """A joint-space straight line ``q_start`` → ``q_goal`` (exactly), tip steps ≤ ``step_m``, rest to
+        rest within the joint limits and ``speed_mps`` at the tip. Raises OutsideWorkspace."""
+        q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
+        span_m = float(np.linalg.norm(self.model.fk(q1)[0] - self.model.fk(q0)[0]))
+        n = max(2, int(np.ceil(span_m / step_m - 1e-9)) + 1)  # robust at whole multiples (see densify)
+        qs = q0 + (q1 - q0) * np.linspace(0.0, 1.0, n)[:, None]
+        qs[-1] = q1  # exactly
+        tip = np.array([self.model.fk(q)[0] for q in qs])
+        self.box.check(tip[1:])
+        return time_parameterize(qs, tip, self._limits(speed_mps))
+
+
+def path_point_before(traj: TimedTrajectory, start_s: float, contact_s: float,
+                      clearance_m: float) -> Optional[np.ndarray]:
+    """Joints of the last waypoint of ``traj`` (started at ``start_s``) at least ``clearance_m`` of tip
+    travel before where the tip was at ``contact_s``; None when there is none."""
+    if len(traj.times_s) < 2:
+        return None
+    tip = traj.tip_xyz
+    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
+    at_contact = np.interp(contact_s - start_s, traj.times_s, travelled)
+    ok = np.flatnonzero(travelled <= at_contact - clearance_m)
+    return None if len(ok) == 0 else np.array(traj.positions_rad[ok[-1]], dtype=float)
+
+
+def timed_start_ns(now_ns: int, lead_s: float, grid_s: float) -> int:
+    """Start time of a trajectory sent at ``now_ns`` (0: on receipt, the ros2_control default).
+
+    With ``lead_s`` > 0 the controller starts it ``lead_s`` later, on the next multiple of ``grid_s``
+    (the simulated rig's tick): the rig then samples every motion at the same offsets from its start.
+    """
+    if lead_s <= 0:
+        return 0
+    t_ns = int(now_ns) + int(round(lead_s * 1e9))
+    grid_ns = int(round(grid_s * 1e9))
+    return -(-t_ns // grid_ns) * grid_ns if grid_ns > 0 else t_ns
