@@ -22,7 +22,6 @@ slide's servo sees contacts a few milliseconds old, as on a real rig.
 from __future__ import annotations
 
 import time
-import zlib
 
 import numpy as np
 from rclpy.clock import Clock, ClockType
@@ -39,6 +38,7 @@ from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
 from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
+from tactile_sim.sensor_device import motion_key
 
 HOME_RAD = [0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854]  # Panda: tip at (0.50, 0.00, 0.35), finger vertical
 
@@ -143,12 +143,7 @@ class SimRig(Node):
                                           f"({self.late_starts} so far): started late (raise the commander's "
                                           f"start_lead_s)", throttle_duration_sec=5.0)
             if self.device is not None and len(times):  # the noise of this motion's frames: keyed on it
-                # Keyed on where the motion starts and ends, rounded to a µrad: the same motion gets the
-                # same key on every run, even when its joints differ in the last bits (a contact placed
-                # 1e-15 m apart moves the next plan by as much).
-                ends = np.round(np.vstack([positions[0], positions[-1]]) * 1e6).astype(np.int64)
-                key = zlib.crc32(ends.tobytes())
-                self.device.begin_motion(key, self.t_s if start_s <= self.t_s else start_s)
+                self.device.begin_motion(motion_key(positions), self.t_s if start_s <= self.t_s else start_s)
         except (TrajectoryRejected, ValueError) as exc:
             self.get_logger().error(f"trajectory rejected ({self.controller.rejected} so far): {exc}")
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import os
 import tty
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional
@@ -70,6 +71,15 @@ class DeviceStats:
     crc_corrupted: int = 0
     disconnects: int = 0
     reconnects: int = 0
+
+
+def motion_key(positions_rad: np.ndarray) -> int:
+    """The noise key of a commanded motion (K, n) joint positions: a checksum of where it starts and
+    ends, rounded to a µrad, so the same motion gets the same key on every run even when its joints
+    differ in the last bits (a contact placed 1e-15 m apart moves the next plan by as much)."""
+    q = np.asarray(positions_rad, dtype=float)
+    ends = np.round(np.vstack([q[0], q[-1]]) * 1e6).astype(np.int64)
+    return zlib.crc32(ends.tobytes())
 
 
 class SimulatedSensorDevice:
@@ -201,6 +211,12 @@ class SimulatedSensorDevice:
             return np.random.default_rng([self.seed, 1, key, j])
         return np.random.default_rng([self.seed, 2, k % self.IDLE_NOISE_PERIOD])
 
+    def frame_values(self, k: int, t_s: float, clean: np.ndarray) -> np.ndarray:
+        """(N,) uint16 counts of frame ``k`` at ``t_s`` with noise-free counts ``clean`` (no faults):
+        noise from :meth:`noise_rng`, loaded when ``clean`` is not the baseline."""
+        loaded = not np.array_equal(clean, self.model.baseline_counts)
+        return self.model.add_noise(clean, self.noise_rng(k, t_s, loaded))
+
     def step(self, now_s: float) -> int:
         """Write every frame due up to simulated time ``now_s``; the number written."""
         if self._t0 is None:
@@ -235,8 +251,7 @@ class SimulatedSensorDevice:
         if len(self._out) > self.TX_BUFFER_BYTES:  # the reader stalls: the device drops whole frames
             self.stats.frames_lost += 1
             return 0
-        loaded = not np.array_equal(clean, self.model.baseline_counts)
-        values = self.model.add_noise(clean, self.noise_rng(k, t_s, loaded))
+        values = self.frame_values(k, t_s, clean)
         if f.stuck_taxel >= 0 and t_s - self._t0 >= f.stuck_after_s:
             values[f.stuck_taxel] = f.stuck_value
         if f.drop_prob and self._rng.random() < f.drop_prob:
