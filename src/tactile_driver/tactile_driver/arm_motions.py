@@ -8,8 +8,7 @@ and plans (world frame, metres, radians, seconds):
   waypoint, time-parameterised rest to rest): the free-space path, the
   guarded approach, a back-off away from a contact;
 - :meth:`joint_move`: a joint-space straight line to given joints (the
-  retract, a back-off along a path), tip steps bounded, every tip waypoint
-  box-checked;
+  retract, a back-off along a path), every tip waypoint box-checked;
 - :func:`path_point_before`: the last waypoint of a followed path at least a
   clearance of tip travel before a contact (where a path back-off goes).
 
@@ -65,8 +64,10 @@ class ArmMotions:
         return traj
 
     def joint_move(self, q_start: np.ndarray, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
-        """A joint-space straight line ``q_start`` → ``q_goal`` (exactly), tip steps ≤ ``step_m``, rest to
-        rest within the joint limits and ``speed_mps`` at the tip. Raises OutsideWorkspace."""
+        """A joint-space straight line ``q_start`` → ``q_goal`` (exactly) in equal joint steps, as many as
+        the tip's straight-line span needs at ``step_m`` (the tip's own steps then vary a few per cent
+        around it on a curved joint-space path), rest to rest within the joint limits and ``speed_mps``
+        at the tip. Every tip waypoint is box-checked. Raises OutsideWorkspace."""
         q0, q1 = np.asarray(q_start, dtype=float), np.asarray(q_goal, dtype=float)
         span_m = float(np.linalg.norm(self.model.fk(q1)[0] - self.model.fk(q0)[0]))
         n = max(2, int(np.ceil(span_m / step_m - 1e-9)) + 1)  # robust at whole multiples (see densify)
@@ -80,14 +81,20 @@ class ArmMotions:
 def path_point_before(traj: TimedTrajectory, start_s: float, contact_s: float,
                       clearance_m: float) -> Optional[np.ndarray]:
     """Joints of the last waypoint of ``traj`` (started at ``start_s``) at least ``clearance_m`` of tip
-    travel before where the tip was at ``contact_s``; None when there is none."""
+    travel before where the tip was at ``contact_s``; the path's first waypoint when the contact came
+    sooner (the arm was there, in free space, when the path began). None for a path of one point.
+
+    Always a waypoint of the plan, never a point that depends on where the arm stopped: the touch
+    then ends on the same joints on every run (before, a contact within ``clearance_m`` of the path's
+    start backed off straight from the stopped tip, so the next touch started from joints that
+    depended on the stopping latency, and graph runs of one seed parted there)."""
     if len(traj.times_s) < 2:
         return None
     tip = traj.tip_xyz
     travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
     at_contact = np.interp(contact_s - start_s, traj.times_s, travelled)
     ok = np.flatnonzero(travelled <= at_contact - clearance_m)
-    return None if len(ok) == 0 else np.array(traj.positions_rad[ok[-1]], dtype=float)
+    return np.array(traj.positions_rad[ok[-1] if len(ok) else 0], dtype=float)
 
 
 def timed_start_ns(now_ns: int, lead_s: float, grid_s: float) -> int:

@@ -221,8 +221,9 @@ class ArmCommander:
 
         When the last task was that path and ``contact_stamp_ns`` is given: back along the path, in
         joint space, to its last waypoint at least ``clearance_m`` of travel before the contact
-        (the path was free there), so the arm ends on joints that do not depend on how late it
-        stopped. Otherwise straight away from the contact to
+        (the path was free there), or to its start when the contact came sooner
+        (:func:`~tactile_driver.arm_motions.path_point_before`), so the arm ends on joints that do
+        not depend on how late it stopped. Otherwise straight away from the contact to
         :func:`~tactile_driver.contact.back_off_target` at ``tip_radius_m + clearance_m``: the tip
         ends ``clearance_m`` off the surface.
         """

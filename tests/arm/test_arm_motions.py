@@ -1,0 +1,65 @@
+"""The commander's plans without ROS (tactile_driver.arm_motions), against the forward kinematics.
+
+The back-off waypoint is judged from the plan's own tip polyline measured here
+(cumulative lengths); the joint move's end against the exact goal joints.
+"""
+
+import numpy as np
+import pytest
+
+from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
+from tactile_driver.commander_api import CommanderConfig
+
+
+@pytest.fixture(scope="module")
+def motions():
+    return ArmMotions(CommanderConfig())
+
+
+@pytest.fixture(scope="module")
+def straight_path(motions):
+    """A 6 cm straight tip path along +x at 6 cm height, from the IK of its start."""
+    q0 = motions.tip_path(np.array([[0.40, 0.0, 0.06]]), motions.home).positions_rad[-1]
+    return motions.tip_path(np.array([[0.40, 0.0, 0.06], [0.46, 0.0, 0.06]]), q0)
+
+
+def _travelled(traj):
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.tip_xyz, axis=0), axis=1))])
+
+
+def test_the_back_off_waypoint_is_the_last_one_a_clearance_before_the_contact(motions, straight_path):
+    traj, start_s = straight_path, 3.0
+    s = _travelled(traj)
+    t_contact = float(np.interp(0.045, s, traj.times_s))  # the tip had gone 4.5 cm along the path
+    q = path_point_before(traj, start_s, start_s + t_contact, 0.01)
+    k = int(np.flatnonzero(s <= 0.035 + 1e-12)[-1])
+    assert np.array_equal(q, traj.positions_rad[k])
+    tip = motions.model.fk(q)[0]
+    assert 0.01 <= 0.45 - tip[0] + 1e-9 and 0.45 - tip[0] < 0.01 + 0.011  # within a waypoint step (1 cm)
+
+
+def test_a_contact_sooner_than_the_clearance_backs_off_to_the_paths_start(motions, straight_path):
+    """Never a point that depends on where the arm stopped (the straight-away back-off did)."""
+    traj, start_s = straight_path, 3.0
+    t_contact = float(np.interp(0.004, _travelled(traj), traj.times_s))
+    q = path_point_before(traj, start_s, start_s + t_contact, 0.01)
+    assert np.array_equal(q, traj.positions_rad[0])
+
+
+def test_a_joint_move_ends_exactly_on_its_goal_in_steps_of_about_the_tip_step(motions, straight_path):
+    q0, q1 = straight_path.positions_rad[-1], straight_path.positions_rad[0]
+    traj = motions.joint_move(q0, q1, 0.02, 0.005)
+    assert np.array_equal(traj.positions_rad[-1], q1) and np.array_equal(traj.positions_rad[0], q0)
+    steps = np.linalg.norm(np.diff([motions.model.fk(q)[0] for q in traj.positions_rad], axis=0), axis=1)
+    assert len(steps) == int(np.ceil(0.06 / 0.005))  # from the tip's 6 cm straight-line span
+    assert 0.95 * 0.005 < steps.min() and steps.max() < 1.05 * 0.005  # a curved joint-space path
+
+
+@pytest.mark.parametrize("now_ns, lead_s, grid_s, expected_ns", [
+    (1_234_567_891, 0.5, 0.01, 1_740_000_000),  # 0.5 s later, up to the next 10 ms tick
+    (1_230_000_000, 0.5, 0.01, 1_730_000_000),  # already on the grid: stays there
+    (1_234_567_891, 0.0, 0.01, 0),  # no lead: start on receipt
+    (1_234_567_891, 0.5, 0.0, 1_734_567_891),  # no grid
+])
+def test_timed_starts_fall_on_the_tick_grid(now_ns, lead_s, grid_s, expected_ns):
+    assert timed_start_ns(now_ns, lead_s, grid_s) == expected_ns
