@@ -27,6 +27,7 @@ from .experiment import Experiment
 from .motion import MotionModel, polyline_length_m
 from .progress import observe, stop_reason, touch_record
 from .report import make_report
+from .rig_touch import RigFinger
 from .sensing import SimulatedFinger
 from .slide_touch import observe_stream, slide_touch
 
@@ -41,9 +42,15 @@ class ExplorationLoop:
         self.evaluator = Evaluator(experiment)
         self.estimator = make_estimator(experiment)
         self.planner = make_planner(experiment)
-        self.finger = SimulatedFinger.from_params(experiment, self.evaluator.obj)
+        self.finger = SimulatedFinger.from_params(experiment, self.evaluator.obj)  # slides
         self.motion = MotionModel.from_params(experiment.planner_params)
         self.touch = str(experiment.planner_params.get("touch", "poke"))  # 'poke' | 'slide' (the planner's too)
+        # Pokes: the graph's rig, driver and commander plans in this process (rig_touch), so a seed gives
+        # the graph's touch sequence. A slide run pokes (rarely) with the model finger: the graph's slides
+        # are not replayed here, so the rig's joints would not be the graph's after one.
+        self.poker = RigFinger(experiment, self.evaluator.obj) if self.touch == "poke" else self.finger
+        explorer = experiment.node_params("explorer")
+        self.max_unreachable = int(explorer.get("max_unreachable", 10))
         self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01))
 
     @property
@@ -57,53 +64,64 @@ class ExplorationLoop:
         touches: list[dict] = []
         prior_iou = self.evaluator.iou(self.estimator)
         stopped = "touch budget" if exp.touches > 0 else "no touches asked"
+        excluded: list[np.ndarray] = []  # targets reported unreachable (the planner node's exclusion)
+        unreachable_in_row = 0
         while stop_reason(exp, touches) is None:
             t0 = time.perf_counter()
-            plan = self.planner.plan(self.estimator.map_array(), tip, np.zeros((0, 3)))
+            plan = self.planner.plan(self.estimator.map_array(), tip, np.array(excluded).reshape(-1, 3))
             plan_ms = (time.perf_counter() - t0) * 1e3  # map extraction + planning
             if not plan.ok:
                 stopped = f"planner: {plan.status}: {plan.message}"
                 break
-            # Move from the tip along the path, approach along −normal, retract. A path that
-            # meets the object (the estimate was too small there) stops on the contact and
-            # backs off from it, as the arm commander does.
             path = np.vstack([tip[None, :], plan.path_xyz])
-            hit = self.finger.path_contact(path, len(touches))
-            slide = None
+            slide, hit = None, None
             if self.touch == "slide" and np.isfinite(plan.slide_length_m):
                 # Approach (or the path's contact), slide along the surface, back off (slide_touch).
+                hit = self.finger.path_contact(path, len(touches))
                 st = slide_touch(self.finger, self.motion, plan, path, hit, len(touches), self.standoff_m)
                 result, slide, tip = st.approach, st.slide, st.tip_xyz
                 travel_m += st.travel_m
                 time_s += st.time_s
                 free_m = st.path_followed_m
                 hit = None if free_m is None else hit
-            elif hit is None:
-                path_m = polyline_length_m(path)
-                result = self.finger.approach(plan.pretouch_xyz, -np.asarray(plan.normal_xyz), len(touches))
-                travel_m += path_m + 2.0 * result.travel_m
-                time_s += self.motion.touch_time_s(path_m, result.travel_m)
-                tip = np.asarray(plan.pretouch_xyz, dtype=float)
+                contact = result.contact
+                point = result.point_xyz if contact else result.tip_xyz_at_stop
+                # a miss: the guarded approach swept free space from the pre-touch point to the probe end
+                sweep = None if contact else np.asarray(plan.pretouch_xyz, dtype=float) - point
+                normal = result.normal_xyz
             else:
-                free_m, result, tip = hit
-                back_m = float(np.linalg.norm(tip - result.tip_xyz_at_stop))
-                travel_m += free_m + result.travel_m + back_m
-                time_s += self.motion.path_contact_time_s(free_m + result.travel_m, back_m)
+                # Move along the path, approach along the goal's axis, retract; a path that meets the
+                # object stops on the contact and backs off from it (the arm commander's touch).
+                poke = self.poker.poke(plan, tip, len(touches))
+                if poke.outcome == "unreachable":  # nothing moved: plan again without that target
+                    excluded.append(np.asarray(plan.target_xyz, dtype=float))
+                    unreachable_in_row += 1
+                    if unreachable_in_row >= self.max_unreachable:
+                        stopped = f"{unreachable_in_row} unreachable goals in a row"
+                        break
+                    continue
+                unreachable_in_row = 0
+                contact, point, normal, sweep, tip = poke.contact, poke.point_xyz, poke.normal_xyz, poke.sweep_xyz, \
+                    np.asarray(poke.end_xyz, dtype=float)
+                free_m = poke.path_followed_m
+                hit = free_m
+                if free_m is None:
+                    path_m = polyline_length_m(path)
+                    travel_m += path_m + 2.0 * poke.approach_m
+                    time_s += self.motion.touch_time_s(path_m, poke.approach_m)
+                else:
+                    travel_m += free_m + poke.approach_m + poke.back_off_m
+                    time_s += self.motion.path_contact_time_s(free_m + poke.approach_m, poke.back_off_m)
             t1 = time.perf_counter()
-            point = result.point_xyz if result.contact else result.tip_xyz_at_stop
-            # a miss: the guarded approach swept free space from the pre-touch point to the probe end
-            sweep = None if result.contact else np.asarray(plan.pretouch_xyz, dtype=float) - point
-            observe(self.estimator, point, result.normal_xyz if result.contact else sweep, result.contact)
+            observe(self.estimator, point, normal if contact else sweep, contact)
             stream, used = None, None
             if slide is not None:  # the slide's thinned contact stream, in the order sensed, with checkpoints
                 stream, used = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,
                                               time_s - st.time_s)
                 point, normal = (slide.points_xyz[-1], slide.normals_xyz[-1]) if slide.n_contacts else \
-                    (point, result.normal_xyz)
-            else:
-                normal = result.normal_xyz
+                    (point, normal)
             update_ms = (time.perf_counter() - t1) * 1e3
-            record = touch_record(len(touches), plan.target_xyz, result.contact, point, normal,
+            record = touch_record(len(touches), plan.target_xyz, contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
                                   path_xyz=path, path_followed_m=None if hit is None else free_m, slide=slide,
                                   stream=stream, contacts_used=used)

@@ -100,6 +100,25 @@ class SimulatedFinger:
         self.detector.update(self.model.frame(self.obj, start, np.eye(3), rng))
         return result
 
+    def poke(self, plan, tip_xyz: np.ndarray, touch_index: int):
+        """One poke of a planner decision from ``tip_xyz`` with this model of the motion (a straight
+        approach at constant speed, no arm); the result as :class:`tactile_bringup.rig_touch.PokeResult`."""
+        from .rig_touch import PokeResult
+
+        path = np.vstack([np.asarray(tip_xyz, dtype=float)[None, :], plan.path_xyz])
+        hit = self.path_contact(path, touch_index)
+        if hit is not None:
+            free_m, result, back = hit
+            return PokeResult("contact", result.point_xyz, result.normal_xyz, result.force_n, None, back, free_m,
+                              result.travel_m, float(np.linalg.norm(back - result.tip_xyz_at_stop)))
+        pretouch = np.asarray(plan.pretouch_xyz, dtype=float)
+        result = self.approach(pretouch, -np.asarray(plan.normal_xyz), touch_index)
+        if result.contact:
+            return PokeResult("contact", result.point_xyz, result.normal_xyz, result.force_n, None, pretouch, None,
+                              result.travel_m)
+        end = result.tip_xyz_at_stop
+        return PokeResult("free_space", end, result.normal_xyz, 0.0, pretouch - end, pretouch, None, result.travel_m)
+
     def path_contact(self, path_xyz: np.ndarray, touch_index: int,
                      sample_m: float = 0.002) -> Optional[tuple[float, ApproachResult, np.ndarray]]:
         """Where a free-space path (K, 3) first meets the object, sensed as the arm commander does.

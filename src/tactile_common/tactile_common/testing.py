@@ -246,3 +246,29 @@ class RosGraph:
             rclpy.try_shutdown(context=self._context)
             self._node = None
         return codes
+
+
+class BusyCores:
+    """A load generator: ``n`` processes that spin on the CPU (at normal priority) until closed.
+
+    Use as a context manager around a graph run whose result must not depend on timing: on a
+    2-core machine, two of them leave the graph half the CPU it had.
+    """
+
+    def __init__(self, n: int = 2) -> None:
+        self.n = int(n)
+        self.procs: list[subprocess.Popen] = []
+
+    def __enter__(self) -> "BusyCores":
+        code = "while True:\n    pass\n"
+        self.procs = [subprocess.Popen(["python3", "-c", code], stdin=subprocess.DEVNULL,
+                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                      for _ in range(self.n)]
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        for p in self.procs:
+            p.kill()
+        for p in self.procs:
+            p.wait(timeout=10)
+        self.procs = []

@@ -1,0 +1,101 @@
+"""The offline rig (tactile_bringup.rig_touch): the commander's pokes on the simulated rig, in one process.
+
+Judged against the analytic circle (centre (0.50, 0.00), radius 4 cm: its SDF
+and normal are |p − c| − r and (p − c)/|p − c|), the touch geometry's own
+lengths, and the workspace box, not against the code's own output.
+"""
+
+import numpy as np
+import pytest
+
+from tactile_bringup.experiment import Experiment
+from tactile_bringup.rig_touch import RigFinger
+from tactile_planner.planner import PlanResult
+from tactile_sim.objects import make_object
+
+CENTRE = np.array([0.50, 0.0, 0.06])
+RADIUS_M = 0.04
+
+
+def _circle_sdf(p: np.ndarray) -> float:
+    return float(np.linalg.norm((np.asarray(p) - CENTRE)[:2]) - RADIUS_M)
+
+
+@pytest.fixture(scope="module")
+def experiment():
+    return Experiment(mode="2d", object_name="circle", touches=1, seed=3)
+
+
+def _rig(experiment) -> RigFinger:
+    return RigFinger(experiment, make_object("circle", mode="2d"))
+
+
+def _plan(rig: RigFinger, target_xyz, normal_xyz) -> PlanResult:
+    """A decision from the start position straight to the pre-touch point of the target."""
+    target, normal = np.asarray(target_xyz, float), np.asarray(normal_xyz, float)
+    pretouch = rig.geometry.pretouch_xyz(target, normal)
+    path = np.vstack([rig.motions.model.fk(rig.q)[0], pretouch])
+    return PlanResult("ok", "", 0, target, normal, pretouch, path)
+
+
+def test_a_poke_on_the_circle_senses_its_surface_and_ends_at_the_pre_touch_point(experiment):
+    rig = _rig(experiment)
+    touched = []
+    for angle in np.radians([180.0, 150.0, 215.0]):  # faces the start side: free paths
+        n = np.array([np.cos(angle), np.sin(angle), 0.0])
+        res = rig.poke(_plan(rig, CENTRE + RADIUS_M * n, n))
+        assert res.outcome == "contact" and res.path_followed_m is None, res
+        assert abs(_circle_sdf(res.point_xyz)) < 1e-3, res.point_xyz
+        true_n = (res.point_xyz - CENTRE) * [1, 1, 0] / np.linalg.norm((res.point_xyz - CENTRE)[:2])
+        assert float(res.normal_xyz @ true_n) > np.cos(np.radians(10))
+        assert abs(res.point_xyz[2] - CENTRE[2]) < 1e-3  # the 2D rig senses at the tip's height
+        pretouch = rig.geometry.pretouch_xyz(CENTRE + RADIUS_M * n, n)
+        assert np.array_equal(res.end_xyz, pretouch)
+        # the approach went from the pre-touch point about (standoff + tip radius) to the surface
+        assert 0.0 < res.approach_m < rig.geometry.approach_length_m
+        touched.append(res.point_xyz)
+    # the arm ends each touch at the joints of its pre-touch point (the next one plans from there)
+    assert np.linalg.norm(rig.motions.model.fk(rig.q)[0] - pretouch) < 2e-4
+
+
+def test_an_approach_into_free_space_reports_the_probe_end_and_its_sweep(experiment):
+    rig = _rig(experiment)
+    n = np.array([-1.0, 0.0, 0.0])
+    target = CENTRE + (RADIUS_M + 0.05) * n  # 5 cm short of the circle: nothing within the approach
+    res = rig.poke(_plan(rig, target, n))
+    assert res.outcome == "free_space", res
+    pretouch = rig.geometry.pretouch_xyz(target, n)
+    expected_end = pretouch - rig.geometry.approach_length_m * n
+    assert np.linalg.norm(res.point_xyz - expected_end) < 2e-4  # IK tolerance (1e-4) twice
+    assert np.linalg.norm(res.point_xyz + res.sweep_xyz - pretouch) < 2e-4
+    assert _circle_sdf(res.point_xyz) > 0
+
+
+def test_a_path_through_the_object_stops_on_its_contact_and_backs_off_into_free_space(experiment):
+    rig = _rig(experiment)
+    n = np.array([1.0, 0.0, 0.0])  # the far side: the straight path crosses the circle
+    res = rig.poke(_plan(rig, CENTRE + RADIUS_M * n, n))
+    assert res.outcome == "contact" and res.path_followed_m is not None, res
+    assert abs(_circle_sdf(res.point_xyz)) < 1e-3 and res.point_xyz[0] < CENTRE[0]  # the near side
+    # followed from the start to where the skin met the circle (centre x − r − tip radius)
+    first_touch_m = (CENTRE[0] - RADIUS_M - 0.010) - experiment.start_tip_xyz[0]
+    assert first_touch_m - 2e-3 < res.path_followed_m < first_touch_m + 2e-3
+    assert _circle_sdf(res.end_xyz) > 0.010  # backed off: the tip (radius 1 cm) is clear
+    assert res.end_xyz[0] < res.point_xyz[0]
+
+
+def test_an_unreachable_goal_moves_nothing(experiment):
+    rig = _rig(experiment)
+    q = rig.q.copy()
+    n = np.array([-1.0, 0.0, 0.0])
+    res = rig.poke(_plan(rig, np.array([0.95, 0.0, 0.06]), n))  # outside the commander's box (x ≤ 0.75)
+    assert res.outcome == "unreachable" and "box" in res.reason.lower(), res.reason
+    assert np.array_equal(rig.q, q)
+
+
+def test_the_same_pokes_sense_the_same_bits(experiment):
+    a, b = _rig(experiment), _rig(experiment)
+    for angle in np.radians([160.0, 200.0]):
+        n = np.array([np.cos(angle), np.sin(angle), 0.0])
+        ra, rb = a.poke(_plan(a, CENTRE + RADIUS_M * n, n)), b.poke(_plan(b, CENTRE + RADIUS_M * n, n))
+        assert np.array_equal(ra.point_xyz, rb.point_xyz) and np.array_equal(ra.normal_xyz, rb.normal_xyz)
