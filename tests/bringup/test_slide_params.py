@@ -31,3 +31,13 @@ def test_a_bad_force_band_is_one_line_before_start(tmp_path):
     files = _params(tmp_path, {"arm_commander": {"ros__parameters": {"slide.min_force_n": 0.5}}})
     with pytest.raises(ParamsError, match="force band"):
         Experiment(touch="slide", user_params_files=files)
+
+
+def test_a_slide_run_stops_once_the_surface_is_known_unless_the_user_says_otherwise(tmp_path):
+    """explore_slide.yaml: the confidence stop is on for slides (a lap senses the whole contour),
+    off for pokes, and a --params file still decides."""
+    assert Experiment(touch="slide").confidence_max_var_m2 == pytest.approx(1e-6)
+    assert Experiment(touch="poke").confidence_max_var_m2 == 0.0
+    assert Experiment().confidence_max_var_m2 == 0.0
+    files = _params(tmp_path, {"explorer": {"ros__parameters": {"confidence_max_var_m2": 0.0}}})
+    assert Experiment(touch="slide", user_params_files=files).confidence_max_var_m2 == 0.0

@@ -41,8 +41,11 @@ def _monitor(run_dir: Path) -> TrajectoryMonitor:
 
 def test_slide_run_streams_contacts_within_limits_and_replays_offline(domain_env, tmp_path):
     out = tmp_path / "run"
+    # Three slides whatever they sense: the confidence stop of a slide run (explore_slide.yaml) off.
+    budget = tmp_path / "budget.yaml"
+    budget.write_text("explorer:\n  ros__parameters:\n    confidence_max_var_m2: 0.0\n")
     result = subprocess.run(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), "--touch", "slide",
-                             "--touches", str(TOUCHES), "--real-time-factor", "2"],
+                             "--touches", str(TOUCHES), "--real-time-factor", "2", "--params", str(budget)],
                             env=domain_env, capture_output=True, text=True, timeout=900, stdin=subprocess.DEVNULL)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:] + _logs(out)
     check_slide_run(out, domain_env)

@@ -46,6 +46,10 @@ RUN_PARAMETERS = {
 }
 
 
+#: Defaults of a sliding run (--touch slide), between the mode's file and the user's.
+SLIDE_PARAMS_FILE = "explore_slide.yaml"
+
+
 def default_params_files(mode: str) -> list[Path]:
     """Every node's defaults, then the mode's file."""
     if mode not in MODES:
@@ -83,7 +87,8 @@ class Experiment:
 
         check_cli_values({"--alpha": self.alpha, "--touches": self.touches, "--strategy": self.strategy,
                           "--seed": self.seed, "--touch": self.touch})
-        self.params_files = default_params_files(self.mode) + [Path(p) for p in self.user_params_files]
+        slide = [package_config("tactile_bringup", SLIDE_PARAMS_FILE)] if self.touch == "slide" else []
+        self.params_files = default_params_files(self.mode) + slide + [Path(p) for p in self.user_params_files]
         for path in self.params_files:
             if not Path(path).is_file():
                 raise ValueError(f"{path}: no such parameter file")
