@@ -84,22 +84,28 @@ def test_candidates_inside_a_closed_cavity_are_unreachable():
     # a ring wall around the object: free space inside it is cut off from the tip
     r = np.hypot(lat["x"] - 0.5, lat["y"])
     lat["mean"] = np.minimum(lat["mean"], np.abs(r - 0.1) - 0.005)
-    res = TouchPlanner.from_params(load_params(str(CONFIG)), seed=0).plan(
-        np.concatenate([lat, m[m["kind"] == 1]]), np.array([0.37, -0.13, 0.06]))
+    walled, tip = np.concatenate([lat, m[m["kind"] == 1]]), np.array([0.37, -0.13, 0.06])
+    res = TouchPlanner.from_params(dict(load_params(str(CONFIG)), search_quantile=0.0), seed=0).plan(walled, tip)
     assert res.status == "all_unreachable"
+    # With the search on (the default) the run goes on outside the wall, never into the cavity.
+    res = TouchPlanner.from_params(load_params(str(CONFIG)), seed=0).plan(walled, tip)
+    assert res.ok and res.message.startswith("search (all_unreachable on the estimate"), res.message
+    assert np.hypot(res.target_xyz[0] - 0.5, res.target_xyz[1]) > 0.1 - 0.005
 
 
 def test_bad_input_gives_a_status_not_an_exception():
     planner = TouchPlanner.from_params(load_params(str(CONFIG)), seed=0)
     m = sphere_map(32, 2)
     tip = np.array([0.4, 0.0, 0.06])
-    res = planner.plan(m[m["kind"] == 0], tip)
+    no_search = TouchPlanner.from_params(dict(load_params(str(CONFIG)), search_quantile=0.0), seed=0)
+    res = no_search.plan(m[m["kind"] == 0], tip)
     assert res.status == "no_candidates" and "prior" not in res.message  # the lattice still holds a shape
+    res = planner.plan(m[m["kind"] == 0], tip)  # with the search on: it probes rather than stops
+    assert res.ok and res.message.startswith("search (no_candidates on the estimate"), res.message
     lost = m[m["kind"] == 0].copy()
     lost["mean"] = np.abs(lost["mean"]) + 0.01  # misses lifted the whole mean above zero
     res = planner.plan(lost, tip)  # the object is lost: the planner searches for it (tests/planner/test_search.py)
     assert res.ok and res.message.startswith("search"), res.message
-    no_search = TouchPlanner.from_params(dict(load_params(str(CONFIG)), search_quantile=0.0), seed=0)
     res = no_search.plan(lost, tip)
     assert res.status == "no_candidates" and "prior.type 'given'" in res.message
     res = planner.plan(m[::-1], tip)

@@ -159,7 +159,8 @@ def _no_candidate_map():
 
 @pytest.mark.parametrize("case", ["bad_map", "bad_tip", "no_candidates", "all_excluded", "no_free_space"])
 def test_a_plan_without_a_goal_says_why_in_one_line(case):
-    pl = planner(strategy="uncertainty")
+    # search off: with it, a map whose candidates are all blocked is searched instead (below)
+    pl = planner(strategy="uncertainty", search_quantile=0.0)
     tip = np.array([0.38, 0.0, Z])
     m = sphere_map(48, 2, seed=0)
     excluded = None
@@ -180,3 +181,11 @@ def test_a_plan_without_a_goal_says_why_in_one_line(case):
     if case == "all_excluded":
         assert res.status == "all_unreachable"
         assert "near a target reported unreachable" in res.message
+
+
+def test_a_map_without_candidates_is_searched_rather_than_ended():
+    """No candidate on the estimate's surface (here: none in the map), the lattice still holding a
+    shape: the planner probes where the object is most probable (tactile_planner.search) instead of
+    stopping; a walled-in estimate: tests/planner/test_planner.py (closed cavity)."""
+    res = planner(strategy="uncertainty").plan(_no_candidate_map(), np.array([0.38, 0.0, Z]))
+    assert res.ok and res.message.startswith("search (no_candidates on the estimate"), res.message

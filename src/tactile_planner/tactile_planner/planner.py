@@ -49,9 +49,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "margin_m": (0.015, "minimum clearance of the tip centre from the estimated surface on paths", {"gt": 0.0}),
     "clearance": ("distance", "clearance measure: 'distance' (Euclidean, to the zero level set of the mean) or "
                               "'mean' (the GP mean μ, a distance only where |∇μ| ≈ 1)", {"choices": CLEARANCES}),
-    "search_quantile": (0.1, "no estimated surface left (every touch missed): probe the zero level set of "
-                        "μ − βσ, β the quantile of μ/σ that puts this fraction of the lattice on its inside, "
-                        "where the object is most probable (tactile_planner.search); 0 = stop with no_candidates",
+    "search_quantile": (0.1, "no estimated surface left (every touch missed), or none of its candidates can be "
+                        "touched: probe the zero level set of μ − βσ, β the quantile of μ/σ that puts this "
+                        "fraction of the lattice on its inside, where the object is most probable "
+                        "(tactile_planner.search); 0 = stop with no_candidates / all_unreachable",
                         {"ge": 0.0, "lt": 1.0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
@@ -201,16 +202,32 @@ class TouchPlanner:
             sl = tuple(slice(None, None, s) for _ in range(dim))
             lattice = type(lattice)(tuple(a[::s] for a in lattice.axes), lattice.mean_m[sl],
                                     lattice.variance_m2[sl], lattice.plane_z_m)
-        m = len(cands)
-        searching = ""
+        q = float(p["search_quantile"])
         min_z = float(p["min_tip_z_m"]) if dim == 3 else -np.inf
-        if m == 0 and float(p["search_quantile"]) > 0 and object_lost(lattice, min_z):  # search for it
-            found = search_map(lattice, float(p["search_quantile"]), min_z)
+        where = f"probing the {q:.0%} of the lattice where the object is most probable"
+        if not len(cands) and q > 0 and object_lost(lattice, min_z):  # search for it
+            found = search_map(lattice, q, min_z)
             if found is not None:
-                lattice, cands = found
-                m = len(cands)
-                searching = (f"search (no estimated surface: probing the {float(p['search_quantile']):.0%} of "
-                             "the lattice where the object is most probable): ")
+                return self._plan_on(*found, tip, excluded_targets, f"search (no estimated surface: {where}): ")
+        res = self._plan_on(lattice, cands, tip, excluded_targets, "")
+        if res.status in ("all_unreachable", "no_candidates") and q > 0:
+            # The estimate's surface cannot be touched any more (every candidate blocked, excluded or
+            # in a pocket of free space the tip cannot leave), yet the object is somewhere in the
+            # workspace: search where it is most probable rather than end the run.
+            found = search_map(lattice, q, min_z)
+            if found is not None:
+                searched = self._plan_on(*found, tip, excluded_targets,
+                                         f"search ({res.status} on the estimate: {res.message}; {where}): ")
+                if searched.ok:
+                    return searched
+        return res
+
+    def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str) -> PlanResult:
+        """Choose among ``cands`` on ``lattice`` (the estimate's, or the search field's when
+        ``searching`` says why): exclusions, free-space graph, travel costs, strategy, path."""
+        p = self.params
+        dim = lattice.dim
+        m = len(cands)
         if m == 0:
             why = ""
             if np.nanmin(lattice.mean_m) > 0:  # misses lifted the whole mean: the prior shape is gone
