@@ -69,3 +69,33 @@ def test_export_files(tmp_path):
     assert stl.stat().st_size == 84 + 50 * len(ls.elements)
     with pytest.raises(ValueError, match="use .csv, .ply or .obj in 2D"):
         export_level_set(tmp_path / "s.vtk", ls, 3)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_level_set_keys_name_the_lattice_edge_of_each_vertex(dim):
+    n = 17
+    axes = [np.linspace(-1, 1, n)] * dim
+    P = lattice_points(axes)
+    f = (np.linalg.norm(P - 0.05, axis=1) - 0.6).reshape((n,) * dim)
+    ls = (marching_squares if dim == 2 else marching_tetrahedra)(f, axes)
+    keys = ls.keys
+    assert keys.shape == (len(ls.vertices),) and (np.diff(keys) > 0).all()
+    lo, hi = keys // P.shape[0], keys % P.shape[0]
+    assert (np.sign(f.ravel()[lo]) != np.sign(f.ravel()[hi])).all()
+    # each vertex lies on the segment between its two nodes
+    a, b = P[lo], P[hi]
+    t = np.einsum("ij,ij->i", ls.vertices - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
+    np.testing.assert_allclose(a + t[:, None] * (b - a), ls.vertices, atol=1e-12)
+    assert ((t >= 0) & (t <= 1)).all()
+
+
+def test_farthest_point_subsample_matches_the_plain_definition():
+    rng = np.random.default_rng(5)
+    for n, d in [(50, 2), (700, 3), (3000, 3)]:
+        P = rng.normal(size=(n, d))
+        chosen = [int(np.lexsort(P.T[::-1])[0])]
+        d2 = ((P - P[chosen[0]]) ** 2).sum(1)
+        for _ in range(39):
+            chosen.append(int(np.argmax(d2)))
+            d2 = np.minimum(d2, ((P - P[chosen[-1]]) ** 2).sum(1))
+        np.testing.assert_array_equal(farthest_point_subsample(P, 40), np.sort(chosen))
