@@ -20,6 +20,9 @@ def test_blocked_factor_grown_by_rows_solves_like_the_dense_factor(n):
         f.append_rows(L[i:i + b, :i + b])
         i += b
     np.testing.assert_array_equal(f.dense(), L)
+    spans = [(0, n), (n // 2, n), (max(0, n - 3), n)] + ([(BLOCK - 2, min(n, BLOCK + 3))] if n > BLOCK else [])
+    for r0, r1 in spans:
+        np.testing.assert_array_equal(f.rows(r0, r1), L[r0:r1, :r1])  # the rows appended since r0
     for B in (rng.normal(size=n), rng.normal(size=(n, 3)), rng.normal(size=(n, 40))):
         np.testing.assert_allclose(f.solve(B), np.linalg.solve(L, B), rtol=1e-10, atol=1e-12)
         np.testing.assert_allclose(f.solve(B, True), np.linalg.solve(L.T, B), rtol=1e-10, atol=1e-12)

@@ -217,3 +217,54 @@ def test_local_state_grows_linearly_without_lattice_sized_copies():
 def test_bad_local_parameters_are_refused(params, match):
     with pytest.raises(ValueError, match=match):
         ShapeEstimator.from_params(params)
+
+
+def test_cached_candidates_match_the_direct_prediction():
+    """predict_candidates (per-expert columns reused across calls, grown by appends) gives
+    what predict gives, through appends, anchor commits and leaf splits, for points asked
+    again, dropped and new."""
+    est = ShapeEstimator.from_params({"mode": "2d", "method": "local", "lattice.points_per_axis_2d": 64,
+                                      "duplicate_distance_m": 0.0, "local.leaf_capacity_2d": 24})
+    pts, nrm = star_contacts(120, seed=4)
+    rng = np.random.default_rng(0)
+    Q = star_contacts(60, seed=9)[0][:, :2] + rng.normal(scale=0.002, size=(60, 2))
+    loc = est.local
+    splits = commits = 0
+    for k, (p, n) in enumerate(zip(pts, nrm)):
+        leaves, anchors = len(loc.leaves), loc._anchor_rev
+        assert est.add_observation(p, n, 1)[0]
+        splits += len(loc.leaves) != leaves
+        commits += loc._anchor_rev != anchors
+        if k % 3:
+            continue
+        ask = Q[rng.permutation(60)[:45]]  # most points again (in another order), some dropped, some back
+        mean, var, grad = loc.predict_candidates(ask)
+        m2, v2, g2 = loc.predict(ask, return_var=True, return_grad=True)
+        np.testing.assert_allclose(mean, m2, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(var, v2, rtol=1e-6, atol=1e-15)
+        np.testing.assert_allclose(grad, g2, rtol=0, atol=1e-9)
+    assert splits >= 2 and commits >= 2  # the cases the caches must survive happened
+
+
+@pytest.mark.parametrize("snap_m", [0.0, 1e-5, 3e-4])
+def test_candidates_lie_within_the_snap_distance_of_the_level_set(snap_m):
+    """A candidate is a vertex of the published zero level set, or (local path) where that
+    vertex was, at most candidates.snap_m along its lattice edge, in an earlier map."""
+    est = ShapeEstimator.from_params({"mode": "2d", "method": "local", "lattice.points_per_axis_2d": 64,
+                                      "duplicate_distance_m": 0.0, "candidates.snap_m": snap_m})
+    pts, nrm = star_contacts(80, seed=6)
+    moved = 0
+    prev = None
+    for k, (p, n) in enumerate(zip(pts, nrm)):
+        est.add_observation(p, n, 1)
+        m = est.map_array()
+        c = m[m["kind"] == 1]
+        C = np.column_stack([c["x"], c["y"]])
+        V = est.level_set().vertices
+        dist = np.sqrt(((C[:, None] - V[None]) ** 2).sum(-1)).min(1)
+        assert dist.max() <= snap_m + 1e-12, (k, dist.max())
+        if prev is not None and k > 60:
+            moved += len(C) - len(set(map(tuple, C)) & prev)
+        prev = set(map(tuple, C))
+    if snap_m == 0:
+        assert moved > 0  # the vertices do move, the snapping is what keeps them

@@ -68,6 +68,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "prior.radius_m": (0.05, "'given' prior: radius (m)", {"gt": 0.0}),
     "candidates.max_count": (200, "maximum number of touch candidates (farthest-point subsample)", {"ge": 1}),
     "candidates.table_margin_m": (0.005, "3D: candidates only above this height (m)", {"ge": 0.0}),
+    "candidates.snap_m": (1e-5, "local path: a level-set vertex (a candidate) that moved less than this along its "
+                          "lattice edge since the last map keeps its last position, so the experts' candidate "
+                          "columns are reused (0 = off) (m)", {"ge": 0.0}),
     "duplicate_distance_m": (0.001, "reject an observation this close to an earlier one (m)", {"ge": 0.0}),
     "thinning.var_ratio": (0.0, "thin a contact whose predicted variance of f at its point is below this "
                            "fraction of its value noise, whose |mean| there is within 2 noise sd and whose normal "
@@ -85,6 +88,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "local.auto_min_contacts": (300, "'auto': observations from which the local path takes over", {"ge": 1}),
     "local.leaf_capacity_2d": (200, "local, 2D: observations in a quadtree cell before it splits", {"ge": 1}),
     "local.leaf_capacity_3d": (32, "local, 3D: observations in an octree cell before it splits", {"ge": 1}),
+    "local.max_rows_2d": (1600, "local, 2D: a quadtree cell wider than its context whose data box holds more rows "
+                          "than this splits too (dense contacts: fewer rows per hit expert; 0 = no limit)", {"ge": 0}),
     "local.context_m_2d": (0.02, "local, 2D: an expert sees the data at least this far beyond its cell (m)",
                            {"gt": 0.0}),
     "local.context_m_3d": (0.012, "local, 3D: an expert sees the data at least this far beyond its cell (m)",
@@ -147,6 +152,7 @@ class ShapeEstimator:
         self.lattice_axes = [np.linspace(self.bounds_m[0, i], self.bounds_m[1, i], n_axis) for i in range(self.dim)]
         self.lattice_shape = tuple(len(a) for a in self.lattice_axes)
         self._lattice = lattice_points(self.lattice_axes)
+        self._lattice_map: Optional[np.ndarray] = None  # the map's lattice rows (positions, kind), built once
         diag = float(np.linalg.norm(self.bounds_m[1] - self.bounds_m[0]))
         R = float(p["kernel.R_m"]) or diag
         if str(p["kernel.type"]) == "thin_plate" and R < diag:
@@ -163,6 +169,7 @@ class ShapeEstimator:
         self.use_normals = bool(p["use_normals"])
         self.max_candidates = int(p["candidates.max_count"])
         self.table_margin_m = float(p["candidates.table_margin_m"])
+        self.snap_m = _nonneg(p, "candidates.snap_m")
         self.duplicate_distance_m = _nonneg(p, "duplicate_distance_m")
         self.thin_var_ratio = _nonneg(p, "thinning.var_ratio")
         self.thin_distance_m = _nonneg(p, "thinning.distance_m")
@@ -176,6 +183,7 @@ class ShapeEstimator:
         self.auto_min_contacts = int(p["local.auto_min_contacts"])
         self._local_args = dict(
             leaf_capacity=int(p[f"local.leaf_capacity_{self.dim}d"]),
+            max_rows=int(p["local.max_rows_2d"]) if self.dim == 2 else 0,
             context_m=float(p[f"local.context_m_{self.dim}d"]),
             context_spacings=float(p["local.context_spacings"]),
             blend=float(p["local.blend"]), anchor_spacing_m=float(p["local.anchor_spacing_m"]),
@@ -237,6 +245,7 @@ class ShapeEstimator:
         self._contact_points = np.zeros((0, self.dim))  # added contacts (thinning by distance)
         self._contact_normals = np.zeros((0, self.dim))  # their unit normals (NaN: none)
         self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
+        self._snap_prev: Optional[tuple[np.ndarray, np.ndarray]] = None  # last map's (vertex keys, positions)
 
     def add_observation(
         self,
@@ -505,34 +514,67 @@ class ShapeEstimator:
         # lattice normals: central differences of the lattice mean (cheap); candidates
         # below use the exact GP posterior gradient.
         grad = np.stack(np.gradient(mean, *self.lattice_axes), axis=-1).reshape(-1, self.dim)
-        cand = ls.vertices
+        cand, keys = ls.vertices, ls.keys
         if self.dim == 3:
-            cand = cand[cand[:, 2] > self.table_margin_m]
+            above = cand[:, 2] > self.table_margin_m
+            cand, keys = cand[above], keys[above]
+        if self.local is not None and self.snap_m > 0:
+            cand = self._snap(cand, keys)
         cand = cand[farthest_point_subsample(cand, self.max_candidates)]
         if not len(cand):
             c_mean, c_var, c_grad = np.zeros(0), np.zeros(0), np.zeros((0, self.dim))
         elif self.local is not None:
-            c_mean, c_var, c_grad = self.local.predict(cand, return_var=True, return_grad=True)
+            c_mean, c_var, c_grad = self.local.predict_candidates(cand)
         else:
             c_mean, c_var = self.gp.predict(cand)
             c_grad = self.gp.predict_gradient(cand)
         n_lat = len(self._lattice)
-        out = np.zeros(n_lat + len(cand), dtype=VARIANCE_MAP_DTYPE)
-        xyz = np.vstack([self._to_xyz(self._lattice), self._to_xyz(cand)])
-        out["x"], out["y"], out["z"] = xyz.T
-        out["mean"] = np.concatenate([mean.ravel(), c_mean])
-        out["variance"] = np.concatenate([var, c_var])
+        out = np.empty(n_lat + len(cand), dtype=VARIANCE_MAP_DTYPE)
+        out[:n_lat] = self._lattice_rows()  # positions and kind of the lattice nodes (fixed), zero normals
+        tail = np.zeros(len(cand), dtype=VARIANCE_MAP_DTYPE)
+        cxyz = self._to_xyz(cand)
+        for i, name in enumerate(("x", "y", "z")):
+            tail[name] = cxyz[:, i]
+        tail["kind"] = KIND_CANDIDATE
+        out[n_lat:] = tail
+        out["mean"][:n_lat], out["mean"][n_lat:] = mean.ravel(), c_mean
+        out["variance"][:n_lat], out["variance"][n_lat:] = var, c_var
         g = _unit(np.vstack([grad, c_grad]))
         for i, name in enumerate(("normal_x", "normal_y", "normal_z")[: self.dim]):
             out[name] = g[:, i]
-        out["kind"][:n_lat] = KIND_LATTICE
-        out["kind"][n_lat:] = KIND_CANDIDATE
         self._cache = (self._version, out, ls)
         return self._cache
 
 
+    def _lattice_rows(self) -> np.ndarray:
+        """The map's lattice rows with x, y, z and kind set (the rest zero), built once."""
+        if self._lattice_map is None:
+            rows = np.zeros(len(self._lattice), dtype=VARIANCE_MAP_DTYPE)
+            xyz = self._to_xyz(self._lattice)
+            for i, name in enumerate(("x", "y", "z")):
+                rows[name] = xyz[:, i]
+            rows["kind"] = KIND_LATTICE
+            self._lattice_map = rows
+        return self._lattice_map
+
+    def _snap(self, verts: np.ndarray, keys: np.ndarray) -> np.ndarray:
+        """Vertices (V, d) with those that moved at most ``candidates.snap_m`` along their
+        lattice edge (same key) since the last map put back where they were then."""
+        out = verts.copy()
+        if self._snap_prev is not None and len(self._snap_prev[0]) and len(keys):
+            pk, pv = self._snap_prev
+            j = np.minimum(np.searchsorted(pk, keys), len(pk) - 1)
+            near = (pk[j] == keys) & (((verts - pv[j]) ** 2).sum(1) <= self.snap_m ** 2)
+            out[near] = pv[j[near]]
+        self._snap_prev = (keys, out)
+        return out
+
+
 def _unit(g: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(g, axis=1, keepdims=True)
+    sq = g[:, 0] * g[:, 0]  # |g|^2 as np.linalg.norm sums it (the same bits), without its temporaries
+    for i in range(1, g.shape[1]):
+        sq += g[:, i] * g[:, i]
+    n = np.sqrt(sq)[:, None]
     return np.divide(g, n, out=np.zeros_like(g), where=n > 1e-12)
 
 

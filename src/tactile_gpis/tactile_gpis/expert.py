@@ -16,6 +16,7 @@ the new rows, which the caller commits only when every expert took them.
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple, Optional
 
 import numpy as np
@@ -28,6 +29,8 @@ from .kernels import Kernel
 #: rows per block of the factor: fewer, larger blocks cut the per-block call overhead of a
 #: solve, smaller ones the zero upper part of each diagonal block (not tuned)
 BLOCK = 128
+
+_UIDS = itertools.count()  # one id per factor built (caches keyed on a factor tell a rebuild)
 
 
 class BlockedFactor:
@@ -92,6 +95,17 @@ class BlockedFactor:
                     X[:r0] -= self.off[b][:m].T @ X[r0:r1]
         return X[:, 0] if vec else X
 
+    def rows(self, r0: int, r1: int) -> np.ndarray:
+        """L[r0:r1, :r1] (r1 - r0, r1) dense (the rows appended since r0)."""
+        out = np.zeros((r1 - r0, r1))
+        for b in range(r0 // BLOCK, (r1 - 1) // BLOCK + 1 if r1 > r0 else r0 // BLOCK):
+            b0 = b * BLOCK
+            s, e = max(r0, b0), min(r1, b0 + BLOCK)
+            out[s - r0: e - r0, :b0] = self.off[b][s - b0: e - b0]
+            w = min(BLOCK, r1 - b0)
+            out[s - r0: e - r0, b0: b0 + w] = self.diag[b][s - b0: e - b0, :w]
+        return out
+
     def dense(self) -> np.ndarray:
         """L (n, n) (for tests)."""
         L = np.zeros((self.n, self.n))
@@ -133,6 +147,8 @@ class ExpertGP:
         self.L = BlockedFactor()
         self.beta = np.zeros(0)
         self._alpha: Optional[np.ndarray] = np.zeros(0)
+        self.uid = next(_UIDS)  #: new for every factor built from scratch (appends keep it)
+        self.rev = 0  #: bumped whenever beta changes (appends, new residuals)
 
     @property
     def n(self) -> int:
@@ -198,6 +214,7 @@ class ExpertGP:
         self.noise = np.r_[self.noise, a.noise]
         self.beta = np.r_[self.beta, a.beta]
         self._alpha = None
+        self.rev += 1
 
     @staticmethod
     def solve_rows(a: Append, W: np.ndarray, K2q: np.ndarray) -> np.ndarray:
@@ -214,6 +231,7 @@ class ExpertGP:
         self.resid = resid.copy()
         self.beta = self.solve(resid)
         self._alpha = None
+        self.rev += 1
 
     def nbytes(self) -> int:
         alpha = self._alpha if self._alpha is not None else self.beta

@@ -39,6 +39,7 @@ from typing import Optional
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.linalg import solve_triangular
 
 from .expert import ExpertGP
 from .gp import GPIS, VALUE, FactorError, MeanFn, cross_cov, gradient_rows, zero_mean
@@ -74,6 +75,46 @@ def _interpolation_matrix(axes: list[np.ndarray], P: np.ndarray) -> sp.csr_matri
                          shape=(N, int(np.prod(shape))))
 
 
+class _CandCache:
+    """One expert's columns for the query points of the last :meth:`LocalGPIS.predict_candidates`.
+
+    Columns in the order of ``ids`` (the caller's ids of the points, equal ids = equal
+    coordinates): Wv = L^-1 K(rows, points) (n, q) and, where ``g_ok``, Wg = L^-1 K(rows,
+    gradient rows of the points) (n, q d); an append only adds their new rows. r, dr, v:
+    the expert's residual mean, its gradient and its variance at the points, valid for the
+    factor ``uid`` with ``n`` rows at beta revision ``rev``; w, dw: the raw weight and its
+    gradient there.
+    """
+
+    def __init__(self, uid: int, n: int, rev: int, ids: np.ndarray, P: np.ndarray, w: np.ndarray, dw: np.ndarray,
+                 Wv: np.ndarray, Wg: np.ndarray, g_ok: np.ndarray, r: np.ndarray, dr: np.ndarray,
+                 v: np.ndarray) -> None:
+        self.uid, self.n, self.rev = uid, n, rev
+        self.ids, self.P, self.w, self.dw = ids, P, w, dw
+        self.Wv, self.Wg, self.g_ok = Wv, Wg, g_ok
+        self.r, self.dr, self.v = r, dr, v
+        self._blend: Optional[np.ndarray] = None
+
+    @property
+    def blend(self) -> np.ndarray:
+        """(q, 3 + 2d) per point: w r, w, w v, dw r + w dr, dw (what the blend sums)."""
+        if self._blend is None:
+            w = self.w[:, None]
+            self._blend = np.hstack([w * self.r[:, None], w, w * self.v[:, None],
+                                     self.dw * self.r[:, None] + w * self.dr, self.dw])
+        return self._blend
+
+    def take(self, cols: np.ndarray) -> "_CandCache":
+        d = self.P.shape[1]
+        gcols = (cols[:, None] * d + np.arange(d)).ravel()
+        return _CandCache(self.uid, self.n, self.rev, self.ids[cols], self.P[cols], self.w[cols], self.dw[cols],
+                          self.Wv[:, cols], self.Wg[:, gcols], self.g_ok[cols], self.r[cols], self.dr[cols],
+                          self.v[cols])
+
+    def nbytes(self) -> int:
+        return int(self.Wv.nbytes + self.Wg.nbytes + self.P.nbytes * 4)
+
+
 class _Leaf:
     """One expert: a tree cell, its data box, and (once active) the exact GP on its rows."""
 
@@ -97,6 +138,7 @@ class _Leaf:
         self.w = np.zeros(0)
         self._wbuf = np.zeros((0, 0))
         self.contrib = np.zeros(0)
+        self.cand: Optional[_CandCache] = None  # the last candidates' columns (predict_candidates)
 
     @property
     def W(self) -> np.ndarray:
@@ -146,6 +188,8 @@ class LocalGPIS:
         bounds_m: (2, dim) box holding every observation (the tree's root cell).
         lattice_axes: per axis the lattice node coordinates (the map).
         leaf_capacity: observations in a leaf before it splits.
+        max_rows: a leaf wider than its context whose data box holds more rows than this
+            splits too (0 = no limit).
         context_m, context_spacings: data box margin: an expert sees the data
             c = max(context_m, context_spacings * s) beyond its cell, s the spacing of
             the observations where its parent split (parent size / own^(1/(d-1)),
@@ -162,7 +206,8 @@ class LocalGPIS:
                  bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 32,
                  context_m: float = 0.012, context_spacings: float = 1.6, blend: float = 0.25, min_leaf_m: float = 0.004,
                  anchor_spacing_m: float = 0.015, max_anchors: int = 256, anchor_batch: float = 0.25,
-                 anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3) -> None:
+                 anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3,
+                 max_rows: int = 0) -> None:
         if not 0 < blend < 1:
             raise ValueError(f"local blend {blend} must be in (0, 1)")
         if not context_m > 0:
@@ -170,6 +215,7 @@ class LocalGPIS:
         if leaf_capacity < 1 or max_anchors < 1 or coarse_stride < 1:
             raise ValueError("leaf_capacity, max_anchors and coarse_stride must be >= 1")
         self.kernel, self.dim, self.jitter = kernel, dim, float(jitter)
+        self._k0 = kernel.k0
         self.mean_fn = mean_fn or zero_mean
         self.bounds_m = np.asarray(bounds_m, float)
         self.axes = [np.asarray(a, float) for a in lattice_axes]
@@ -179,6 +225,7 @@ class LocalGPIS:
             raise ValueError(f"local context_spacings {context_spacings} must be >= 0")
         self.context_spacings = float(context_spacings)
         self.min_leaf_m = float(min_leaf_m)
+        self.max_rows = int(max_rows) if max_rows > 0 else 1 << 62
         self.anchor_spacing_m, self.max_anchors = float(anchor_spacing_m), int(max_anchors)
         self.anchor_batch, self.anchor_delay = float(anchor_batch), int(anchor_delay)
         self.band_m = float(band_m)
@@ -207,6 +254,10 @@ class LocalGPIS:
         self.anchor = GPIS(self.kernel, d, self.mean_fn, self.jitter)
         self.anchor.set_eval_points(self._coarse)
         self._anchor_alpha = np.zeros(0)
+        self._anchor_rev = 0  # bumped at every anchor commit (the anchor mean/variance changed)
+        self._qids: dict[bytes, int] = {}  # predict_candidates: coordinates -> id (the last call's points)
+        self._next_qid = 0
+        self._anchor_q: Optional[tuple] = None  # predict_candidates: (rev, ids, mean_a, grad_a, var_a)
         self._anchor_obs: list[int] = []
         self._pending: list[int] = []
         self.leaves = [self._new_leaf(self.bounds_m[0].copy(), self.bounds_m[1].copy(), 0)]
@@ -272,7 +323,8 @@ class LocalGPIS:
     def _refresh_coarse(self) -> None:
         """Anchor mean/variance on the fine lattice, interpolated from the coarse one."""
         self._mu_a_lat = self._interp @ self.anchor.eval_mean()
-        self._var_a_lat = self._interp @ self.anchor.eval_variance()
+        self._var_a_coarse = self.anchor.eval_variance()
+        self._var_a_lat = self._interp @ self._var_a_coarse
 
     def _commit_anchors(self) -> None:
         """Add the pending anchors to the anchor GP; recompute every residual and expert."""
@@ -284,6 +336,7 @@ class LocalGPIS:
                 continue  # an anchor the anchor GP cannot take stays a local observation only
             self._anchor_obs.append(i)
         self._pending = []
+        self._anchor_rev += 1
         self._anchor_alpha = self.anchor.alpha
         self._resid = self._y - self._mu_a(self._X, self._t)
         for lf in self.leaves:
@@ -418,7 +471,11 @@ class LocalGPIS:
         owner = self._owner(x)
         owner.own.append(i)
         self._add_band_nodes(self._near_nodes(x))
-        if len(owner.own) > self.leaf_capacity and float((owner.hi - owner.lo).min()) >= 2 * self.min_leaf_m:
+        size = float((owner.hi - owner.lo).min())
+        # a cell wider than its context that sees many rows splits too: its children's data
+        # boxes hold fewer rows (per-contact cost ~ sum of the hit experts' rows squared)
+        big = len(owner.own) > self.leaf_capacity or (len(owner.rows) > self.max_rows and size > owner.context_m)
+        if big and size >= 2 * self.min_leaf_m:
             self._split(owner)
         self._maybe_anchor(i, x)
 
@@ -538,7 +595,7 @@ class LocalGPIS:
             inbox = np.all((Xq >= lo) & (Xq <= hi), axis=1)
             var_a = np.empty(N)
             if inbox.any():
-                var_a[inbox] = _interpolation_matrix(self._coarse_axes, Xq[inbox]) @ self.anchor.eval_variance()
+                var_a[inbox] = _interpolation_matrix(self._coarse_axes, Xq[inbox]) @ self._var_a_coarse
             if (~inbox).any():
                 var_a[~inbox] = self.anchor.predict(Xq[~inbox])[1] if self.anchor.n else self.kernel.k0
         num, wsum, vnum = np.zeros(N), np.zeros(N), np.zeros(N)
@@ -585,3 +642,165 @@ class LocalGPIS:
     def predict_gradient(self, Xq: np.ndarray) -> np.ndarray:
         """(N, d) gradient of the blended mean."""
         return self.predict(Xq, return_var=False, return_grad=True)[1]
+
+    # -- candidates (cached across calls) ---------------------------------------
+    def predict_candidates(self, Xq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``predict(Xq, return_var=True, return_grad=True)`` (mean, variance, mean
+        gradient), reusing the work of the previous call for the points given again with
+        the same coordinates (the map's candidates: most stay from one contact to the next).
+
+        Per expert and point it keeps Wv = L^-1 k(rows, x) and, from the second call on
+        which the expert has changed, Wg = L^-1 dk/dx: an expert that did not change since
+        the last call reuses its mean, gradient and variance there; one that took rows only
+        adds the new rows of W (O(B m) per point for B new rows, the band caches' rule) and
+        reads mean = Wv^T beta, gradient = Wg^T beta, variance = k(0) - |Wv|^2; new points
+        cost what ``predict`` costs. Exact (the first rows of a factor never change), up to
+        rounding: the tests compare it with ``predict``.
+        """
+        Xq = np.atleast_2d(np.asarray(Xq, float))
+        N, d = Xq.shape
+        ids = self._query_ids(Xq)
+        mean_a, grad_a, var_a = self._anchor_at(Xq, ids)
+        b = self._box_arrays()
+        inside = np.all((Xq[None] >= b["blo"][:, None]) & (Xq[None] <= b["bhi"][:, None]), axis=2)  # (leaves, N)
+        used = inside.any(1)
+        sels, parts = [], []
+        for j, lf in enumerate(self.leaves):
+            if not used[j]:
+                lf.cand = None  # its columns are not wanted any more
+                continue
+            sel = np.flatnonzero(inside[j])
+            if not lf.active:
+                self._activate(lf)
+            c, pos = self._cand_columns(lf, ids[sel], Xq[sel])
+            sels.append(sel)
+            parts.append(c.blend if pos is None else c.blend[pos])
+        # per point: sum_e w_e r_e, sum_e w_e, sum_e w_e v_e, sum_e (dw_e r_e + w_e dr_e), sum_e dw_e
+        acc = np.zeros((N, 3 + 2 * d))
+        if sels:
+            np.add.at(acc, np.concatenate(sels), np.vstack(parts))
+        num, wsum, vnum = acc[:, 0], np.maximum(acc[:, 1], 1e-300), acc[:, 2]
+        gnum, gw = acc[:, 3: 3 + d], acc[:, 3 + d:]
+        return (mean_a + num / wsum, np.maximum(np.minimum(var_a, vnum / wsum), 0.0),
+                grad_a + gnum / wsum[:, None] - (num / wsum ** 2)[:, None] * gw)
+
+    def _query_ids(self, Xq: np.ndarray) -> np.ndarray:
+        """An id per point: the previous call's id for the same coordinates, else a new one."""
+        old, new = self._qids, {}
+        ids = np.empty(len(Xq), np.int64)
+        for i, row in enumerate(Xq):
+            key = row.tobytes()
+            q = new.get(key)
+            if q is None:
+                q = old.get(key)
+                if q is None:
+                    q = self._next_qid
+                    self._next_qid += 1
+                new[key] = q
+            ids[i] = q
+        self._qids = new
+        return ids
+
+    def _anchor_at(self, Xq: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Anchor mean, mean gradient and (capping) variance at the points, as in ``predict``
+        (kept per point id until the next anchor commit)."""
+        N, d = Xq.shape
+        mean_a, grad_a, var_a = np.empty(N), np.empty((N, d)), np.empty(N)
+        todo = np.ones(N, bool)
+        if self._anchor_q is not None and self._anchor_q[0] == self._anchor_rev:
+            _, cids, cm, cg, cv = self._anchor_q
+            pos, found = _match(cids, ids)
+            mean_a[found], grad_a[found], var_a[found] = cm[pos[found]], cg[pos[found]], cv[pos[found]]
+            todo = ~found
+        if todo.any():
+            P = Xq[todo]
+            n = len(P)
+            Xg, tg = gradient_rows(P)
+            mg = self._mu_a(np.vstack([P, Xg]), np.r_[np.full(n, VALUE), tg])
+            mean_a[todo], grad_a[todo] = mg[:n], mg[n:].reshape(n, d)
+            lo, hi = np.array([a[0] for a in self.axes]), np.array([a[-1] for a in self.axes])
+            inbox = np.all((P >= lo) & (P <= hi), axis=1)
+            v = np.empty(n)
+            if inbox.any():
+                v[inbox] = _interpolation_matrix(self._coarse_axes, P[inbox]) @ self._var_a_coarse
+            if (~inbox).any():
+                v[~inbox] = self.anchor.predict(P[~inbox])[1] if self.anchor.n else self.kernel.k0
+            var_a[todo] = v
+        self._anchor_q = (self._anchor_rev, ids, mean_a, grad_a, var_a)
+        return mean_a, grad_a, var_a
+
+    def _cand_columns(self, lf: _Leaf, ids: np.ndarray, P: np.ndarray) -> tuple[_CandCache, np.ndarray]:
+        """The expert's cache brought up to date for the points (ids, P), and each point's column."""
+        gp, d, k0 = lf.gp, self.dim, self._k0
+        c = lf.cand if lf.cand is not None and lf.cand.uid == gp.uid else None
+        if c is not None:
+            if c.n == gp.n and c.rev == gp.rev and len(c.ids) == len(ids) and np.array_equal(c.ids, ids):
+                return c, None  # the same points, nothing changed: the last call's values
+            pos, keep = _match(c.ids, ids)
+            if keep.all() and c.n == gp.n and c.rev == gp.rev:
+                return c, pos  # nothing changed: the last call's values
+            c = c.take(pos[keep])  # only the columns still wanted
+            changed = c.n != gp.n or c.rev != gp.rev
+            if c.n < gp.n and len(c.ids):  # rows appended since: the new rows of W
+                n0, g = c.n, np.flatnonzero(c.g_ok)
+                gcols = (g[:, None] * d + np.arange(d)).ravel()
+                Xg, tg = gradient_rows(c.P[g])
+                K2 = cross_cov(self.kernel, gp.X[n0:], gp.t[n0:], np.vstack([c.P, Xg]),
+                               np.r_[np.full(len(c.ids), VALUE), tg])
+                R = gp.L.rows(n0, gp.n)
+                W2 = solve_triangular(R[:, n0:], K2 - R[:, :n0] @ np.hstack([c.Wv, c.Wg[:, gcols]]),
+                                      lower=True, check_finite=False)
+                Wg = np.zeros((gp.n, c.Wg.shape[1]))
+                Wg[:n0] = c.Wg
+                Wg[n0:, gcols] = W2[:, len(c.ids):]
+                c.Wv, c.Wg = np.vstack([c.Wv, W2[:, : len(c.ids)]]), Wg
+            c.n = gp.n
+            if changed and len(c.ids):
+                miss = np.flatnonzero(~c.g_ok)  # asked for again on a changed expert: keep Wg from now on
+                if len(miss):
+                    Xg, tg = gradient_rows(c.P[miss])
+                    c.Wg[:, (miss[:, None] * d + np.arange(d)).ravel()] = gp.solve(
+                        cross_cov(self.kernel, gp.X, gp.t, Xg, tg))
+                    c.g_ok[:] = True
+                c.r = c.Wv.T @ gp.beta
+                c.dr = (c.Wg.T @ gp.beta).reshape(-1, d)
+                c.v = k0 - np.einsum("ij,ij->j", c.Wv, c.Wv)
+                c._blend = None
+            c.rev = gp.rev
+            new = ~keep
+        else:
+            keep, new = np.zeros(len(ids), bool), np.ones(len(ids), bool)
+        Pn = P[new]
+        nq = len(Pn)
+        w, dw = lf.weight(Pn, grad=True)
+        if gp.n and nq:
+            Xg, tg = gradient_rows(Pn)
+            KK = cross_cov(self.kernel, gp.X, gp.t, np.vstack([Pn, Xg]), np.r_[np.full(nq, VALUE), tg])
+            Wv = gp.solve(KK[:, :nq])
+            r, dr = Wv.T @ gp.beta, (KK[:, nq:].T @ gp.alpha).reshape(nq, d)
+            v = k0 - np.einsum("ij,ij->j", Wv, Wv)
+        else:
+            Wv, r, dr, v = np.zeros((gp.n, nq)), np.zeros(nq), np.zeros((nq, d)), np.full(nq, k0)
+        fresh = _CandCache(gp.uid, gp.n, gp.rev, ids[new], Pn, w, dw, Wv, np.zeros((gp.n, nq * d)),
+                           np.zeros(nq, bool) if gp.n else np.ones(nq, bool), r, dr, v)
+        if c is None or not len(c.ids):
+            lf.cand = fresh
+            return fresh, np.arange(nq)
+        lf.cand = _CandCache(gp.uid, gp.n, gp.rev, np.r_[c.ids, fresh.ids], np.vstack([c.P, fresh.P]),
+                             np.r_[c.w, fresh.w], np.vstack([c.dw, fresh.dw]), np.hstack([c.Wv, fresh.Wv]),
+                             np.hstack([c.Wg, fresh.Wg]), np.r_[c.g_ok, fresh.g_ok], np.r_[c.r, fresh.r],
+                             np.vstack([c.dr, fresh.dr]), np.r_[c.v, fresh.v])
+        pos = np.empty(len(ids), np.int64)
+        pos[np.flatnonzero(keep)] = np.arange(len(c.ids))
+        pos[np.flatnonzero(new)] = len(c.ids) + np.arange(nq)
+        return lf.cand, pos
+
+
+def _match(cache_ids: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Position of each id in cache_ids (unordered, distinct) and whether it is there."""
+    if not len(cache_ids):
+        return np.zeros(len(ids), np.int64), np.zeros(len(ids), bool)
+    order = np.argsort(cache_ids, kind="stable")
+    j = np.minimum(np.searchsorted(cache_ids[order], ids), len(cache_ids) - 1)
+    found = cache_ids[order[j]] == ids
+    return order[j], found
