@@ -183,18 +183,19 @@ class RigFinger:
         self.t_ns = t_ns
         return None, start_s
 
-    def _release(self, q: np.ndarray) -> None:
-        """The arm is back at ``q`` in free space (after the retract): hold it there, and tick until the
-        detector has released."""
+    def _release(self, q: np.ndarray, max_ticks: int = 100) -> None:
+        """The arm is back at ``q`` (after the retract or back-off): hold it there and tick until the
+        detector has released, at most ``max_ticks``. A touch can end with the skin still loaded (a
+        pre-touch point that the object reaches, an estimate that was off): the detector then stays
+        in contact and the next motion's frames release it, as on the graph."""
         now = stamp_s(time_from_ns(self.t_ns))
         self.controller.command(now, self.rig_model.joint_names, np.array([0.0]), np.asarray(q)[None],
                                 np.zeros((1, len(q))), now)
-        for _ in range(100):
+        for _ in range(max_ticks):
             self.t_ns += TICK_NS
             self._tick(self.t_ns)
             if not self.driver.detector.in_contact:
                 return
-        raise RuntimeError("the simulated sensor stays in contact in free space (is the start inside the object?)")
 
     def _move_to_start(self, start_xyz: np.ndarray, clearance_z_m: float) -> np.ndarray:
         """The commander's start-up move (tactile_driver.startup_move): up, across, down to the start."""
