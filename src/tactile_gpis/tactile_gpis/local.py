@@ -289,8 +289,10 @@ class LocalGPIS:
         return sum(lf.active for lf in self.leaves)
 
     def state_bytes(self) -> int:
-        """Bytes held by the factors, caches, row arrays and lattice arrays (the state's size)."""
-        b = sum(lf.gp.nbytes() + lf._wbuf.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes for lf in self.leaves)
+        """Bytes held by the factors, caches (band and candidate columns), row arrays and
+        lattice arrays (the state's size)."""
+        b = sum(lf.gp.nbytes() + lf._wbuf.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes
+                + (lf.cand.nbytes() if lf.cand is not None else 0) for lf in self.leaves)
         b += self.anchor._L.nbytes + sum(v.nbytes for v in (self.anchor._V or []))
         b += self._X.nbytes + 5 * self._y.nbytes
         b += sum(a.nbytes for a in (self._band, self._num, self._wsum, self._mu_a_band, self._mu_a_lat,
