@@ -209,10 +209,10 @@ class ExpertGP:
     def commit(self, a: Append) -> None:
         self.L.append_rows(a.rows)
         self.X = np.vstack([self.X, a.X])
-        self.t = np.r_[self.t, a.t]
-        self.resid = np.r_[self.resid, a.resid]
-        self.noise = np.r_[self.noise, a.noise]
-        self.beta = np.r_[self.beta, a.beta]
+        self.t = np.concatenate([self.t, a.t])
+        self.resid = np.concatenate([self.resid, a.resid])
+        self.noise = np.concatenate([self.noise, a.noise])
+        self.beta = np.concatenate([self.beta, a.beta])
         self._alpha = None
         self.rev += 1
 

@@ -399,9 +399,9 @@ class LocalGPIS:
         else:
             Wn, c = np.zeros((0, len(idx))), np.zeros(len(idx))
         lf.append_W_cols(Wn)
-        lf.nodes = np.r_[lf.nodes, idx]
-        lf.w = np.r_[lf.w, w]
-        lf.contrib = np.r_[lf.contrib, c]
+        lf.nodes = np.concatenate([lf.nodes, idx])
+        lf.w = np.concatenate([lf.w, w])
+        lf.contrib = np.concatenate([lf.contrib, c])
         self._wsum[idx] += w
         self._num[idx] += w * c
 
@@ -446,17 +446,17 @@ class LocalGPIS:
         states = [lf.gp.append(X, t, resid, nv, K_union[np.searchsorted(union, lf.rows)], K22) for lf in act]
         i, r0 = self.n_obs, self.n_rows
         self._X = np.vstack([self._X, X])
-        self._t = np.r_[self._t, t]
-        self._y = np.r_[self._y, y]
-        self._noise = np.r_[self._noise, nv]
-        self._resid = np.r_[self._resid, resid]
+        self._t = np.concatenate([self._t, t])
+        self._y = np.concatenate([self._y, y])
+        self._noise = np.concatenate([self._noise, nv])
+        self._resid = np.concatenate([self._resid, resid])
         self._obs_pts = np.vstack([self._obs_pts, x])
         self._obs_start.append(r0)
         self._obs_len.append(len(t))
         self.n_obs, self.n_rows = i + 1, r0 + len(t)
         rows = np.arange(r0, r0 + len(t))
         for lf in hit:
-            lf.rows = np.r_[lf.rows, rows]
+            lf.rows = np.concatenate([lf.rows, rows])
         nodes = np.unique(np.concatenate([lf.nodes for lf in act])) if act else np.zeros(0, np.int64)
         K_nodes = cross_cov(self.kernel, X, t, self._lattice[nodes], np.full(len(nodes), VALUE))  # (B, q)
         for lf, st in zip(act, states):
