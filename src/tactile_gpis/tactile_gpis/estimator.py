@@ -545,7 +545,6 @@ class ShapeEstimator:
         self._cache = (self._version, out, ls)
         return self._cache
 
-
     def _lattice_rows(self) -> np.ndarray:
         """The map's lattice rows with x, y, z and kind set (the rest zero), built once."""
         if self._lattice_map is None:
