@@ -34,7 +34,7 @@ World frame, metres, seconds.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from typing import Any, Optional
 
 import numpy as np
@@ -57,38 +57,10 @@ from tactile_sim.sdf_object import Prism
 from tactile_sim.sensor_device import SimulatedSensorDevice, motion_key
 from tactile_sim.sensor_model import SensorModelConfig
 
+from .poke_result import PokeResult
 from .sensing import layout_for
 
 TICK_NS = 10_000_000  # the rig's tick (sim_rig rate_hz 100)
-
-
-@dataclass(frozen=True)
-class PokeResult:
-    """One poke as the graph senses it (world frame, m).
-
-    ``outcome``: 'contact', 'free_space' or 'unreachable'. A contact: ``point_xyz``, ``normal_xyz``
-    (unit outward; NaN when the sensor cannot tell) and ``force_n`` of the driver's onset; free space:
-    ``point_xyz`` = the probe end (tip centre) and ``sweep_xyz`` = from there back to the approach's
-    start. ``end_xyz``: the nominal end (the pre-touch point, or the back-off point after a contact on
-    the path; the next touch starts there). ``path_followed_m``: tip path length before a contact on
-    the path (None: the path was free). ``approach_m``: approach travel to the contact or full depth.
-    ``back_off_m``: tip travel of the back-off after a path contact.
-    """
-
-    outcome: str
-    point_xyz: np.ndarray
-    normal_xyz: np.ndarray
-    force_n: float
-    sweep_xyz: Optional[np.ndarray]
-    end_xyz: np.ndarray
-    path_followed_m: Optional[float]
-    approach_m: float
-    back_off_m: float = 0.0
-    reason: str = ""
-
-    @property
-    def contact(self) -> bool:
-        return self.outcome == "contact"
 
 
 def _from_params(cls, params: dict, prefix: str = ""):

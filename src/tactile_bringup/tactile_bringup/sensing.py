@@ -21,6 +21,8 @@ from tactile_sim.touch import ApproachResult, simulate_approach
 from tactile_driver.slide_servo import ContactThinner, SlideServo, SlideServoConfig
 from tactile_sim.slide import SlideResult, simulate_slide
 
+from .poke_result import PokeResult
+
 
 def _dataclass_from(cls, params: Mapping[str, Any], prefix: str = ""):
     """An instance of dataclass ``cls`` from the ``prefix + field`` keys present in params."""
@@ -102,9 +104,7 @@ class SimulatedFinger:
 
     def poke(self, plan, tip_xyz: np.ndarray, touch_index: int):
         """One poke of a planner decision from ``tip_xyz`` with this model of the motion (a straight
-        approach at constant speed, no arm); the result as :class:`tactile_bringup.rig_touch.PokeResult`."""
-        from .rig_touch import PokeResult
-
+        approach at constant speed, no arm); the result as :class:`~tactile_bringup.poke_result.PokeResult`."""
         path = np.vstack([np.asarray(tip_xyz, dtype=float)[None, :], plan.path_xyz])
         hit = self.path_contact(path, touch_index)
         if hit is not None:
