@@ -577,6 +577,18 @@ class LocalGPIS:
     def band_mask(self) -> np.ndarray:
         return self._band.copy()
 
+    def _anchor_var(self, P: np.ndarray) -> np.ndarray:
+        """The anchor GP's variance at points P (M, d): interpolated from its coarse lattice inside the
+        workspace box, predicted outside it (the prior k0 while the anchor holds no data)."""
+        lo, hi = np.array([a[0] for a in self.axes]), np.array([a[-1] for a in self.axes])
+        inbox = np.all((P >= lo) & (P <= hi), axis=1)
+        v = np.empty(len(P))
+        if inbox.any():
+            v[inbox] = _interpolation_matrix(self._coarse_axes, P[inbox]) @ self._var_a_coarse
+        if (~inbox).any():
+            v[~inbox] = self.anchor.predict(P[~inbox])[1] if self.anchor.n else self.kernel.k0
+        return v
+
     def predict(self, Xq: np.ndarray, return_var: bool = True, return_grad: bool = False):
         """Blended posterior mean (and variance, and mean gradient) at (N, d) points.
 
@@ -591,15 +603,7 @@ class LocalGPIS:
         if return_grad:
             Xg, tg = gradient_rows(Xq)
             grad_a = self._mu_a(Xg, tg).reshape(N, d)
-        var_a = None
-        if return_var:
-            lo, hi = np.array([a[0] for a in self.axes]), np.array([a[-1] for a in self.axes])
-            inbox = np.all((Xq >= lo) & (Xq <= hi), axis=1)
-            var_a = np.empty(N)
-            if inbox.any():
-                var_a[inbox] = _interpolation_matrix(self._coarse_axes, Xq[inbox]) @ self._var_a_coarse
-            if (~inbox).any():
-                var_a[~inbox] = self.anchor.predict(Xq[~inbox])[1] if self.anchor.n else self.kernel.k0
+        var_a = self._anchor_var(Xq) if return_var else None
         num, wsum, vnum = np.zeros(N), np.zeros(N), np.zeros(N)
         gnum, gw = np.zeros((N, d)), np.zeros((N, d))
         for j in self._leaves_overlapping(Xq.min(0), Xq.max(0), "b"):
@@ -720,14 +724,7 @@ class LocalGPIS:
             Xg, tg = gradient_rows(P)
             mg = self._mu_a(np.vstack([P, Xg]), np.r_[np.full(n, VALUE), tg])
             mean_a[todo], grad_a[todo] = mg[:n], mg[n:].reshape(n, d)
-            lo, hi = np.array([a[0] for a in self.axes]), np.array([a[-1] for a in self.axes])
-            inbox = np.all((P >= lo) & (P <= hi), axis=1)
-            v = np.empty(n)
-            if inbox.any():
-                v[inbox] = _interpolation_matrix(self._coarse_axes, P[inbox]) @ self._var_a_coarse
-            if (~inbox).any():
-                v[~inbox] = self.anchor.predict(P[~inbox])[1] if self.anchor.n else self.kernel.k0
-            var_a[todo] = v
+            var_a[todo] = self._anchor_var(P)
         self._anchor_q = (self._anchor_rev, ids, mean_a, grad_a, var_a)
         return mean_a, grad_a, var_a
 
