@@ -43,7 +43,7 @@ from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix
 from tactile_common.slide_goal import decode_path
 from tactile_common.stamps import duration_from_s, ns_from_s, stamp_s, time_from_ns
 from tactile_common.touch_geometry import TouchGeometry, back_off_target
-from tactile_driver.arm_motions import ArmMotions, path_point_before
+from tactile_driver.arm_motions import ArmMotions, path_point_before, tip_travel_at
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
@@ -102,7 +102,7 @@ class RigFinger:
         self.contact_latency_s = float(cfg.contact_latency_s)
         self.t_ns = 0  # simulated time (the rig's clock)
         self._t0_s = TICK_NS * 1e-9  # the device's first frame: the first tick
-        self._calibrate(q0)
+        self._calibrate()
         self.q = q0
         self.q = self._move_to_start(np.asarray(arm.get("start_tip_xyz_m", experiment.start_tip_xyz), dtype=float),
                                      float(arm.get("start_clearance_z_m", 0.25)))
@@ -129,7 +129,7 @@ class RigFinger:
         self.driver.take_frame_contacts()  # the slide servo's stream: nobody reads it in a poke
         return contacts
 
-    def _calibrate(self, q0: np.ndarray) -> None:
+    def _calibrate(self) -> None:
         """The driver's baseline from the idle frames at the home pose (the first ticks)."""
         while not self.driver.detector.calibrated:
             self.t_ns += TICK_NS
@@ -221,23 +221,21 @@ class RigFinger:
         return self.rig_model.fk(self.controller.state(t_s)[0])[0]
 
     def _path_contact(self, hit: WorldContact, path: TimedTrajectory, start_s: float) -> PokeResult:
-        """The path met the object: back off along it to joints before the contact (the commander's
-        back_off), or straight away from the contact when the path had no such waypoint."""
+        """The path met the object: back off along it to a waypoint before the contact (the commander's
+        back_off; only the joints it ends on matter here)."""
         cfg, m = self.cfg, self.motions
         contact_s = ns_from_s(hit.stamp_s) * 1e-9
         q_stop = self.controller.state(stamp_s(time_from_ns(self.t_ns)))[0]
         tip_stop = m.model.fk(q_stop)[0]
         q_back = path_point_before(path, start_s, contact_s, self.back_off_clearance_m)
-        travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path.tip_xyz, axis=0), axis=1))])
-        followed = float(np.interp(contact_s - start_s, path.times_s, travelled))
-        if q_back is not None:
-            back = m.joint_move(q_stop, q_back, cfg.approach_speed_mps, cfg.approach_step_m)
-        else:
+        followed = tip_travel_at(path, start_s, contact_s)
+        if q_back is None:  # a one-point path: straight away from the contact, as the commander does
             target = back_off_target(hit.point_xyz, tip_stop, cfg.tip_radius_m + self.back_off_clearance_m)
-            if target is None:
-                raise RuntimeError("a contact at the tip centre: no direction to back off along")
-            back = m.tip_path(target[None], q_stop, cfg.approach_speed_mps, cfg.approach_step_m)
-            q_back = np.array(back.positions_rad[-1], dtype=float)
+            try:
+                q_back = q_stop if target is None else np.array(m.tip_path(
+                    target[None], q_stop, cfg.approach_speed_mps, cfg.approach_step_m).positions_rad[-1])
+            except (OutsideWorkspace, TrajectoryError):
+                q_back = q_stop  # the commander's back-off is refused there: the arm stays
         self._release(q_back)
         self.q = q_back
         end = m.model.fk(q_back)[0]

@@ -90,11 +90,19 @@ def path_point_before(traj: TimedTrajectory, start_s: float, contact_s: float,
     depended on the stopping latency, and graph runs of one seed parted there)."""
     if len(traj.times_s) < 2:
         return None
-    tip = traj.tip_xyz
-    travelled = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))])
-    at_contact = np.interp(contact_s - start_s, traj.times_s, travelled)
-    ok = np.flatnonzero(travelled <= at_contact - clearance_m)
+    travelled = waypoint_travel_m(traj)
+    ok = np.flatnonzero(travelled <= tip_travel_at(traj, start_s, contact_s) - clearance_m)
     return np.array(traj.positions_rad[ok[-1] if len(ok) else 0], dtype=float)
+
+
+def waypoint_travel_m(traj: TimedTrajectory) -> np.ndarray:
+    """(K,) tip path length from the start of ``traj`` to each of its waypoints (m)."""
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(traj.tip_xyz, axis=0), axis=1))])
+
+
+def tip_travel_at(traj: TimedTrajectory, start_s: float, t_s: float) -> float:
+    """Tip path length of ``traj`` (started at ``start_s``) done by ``t_s`` (m; linear between waypoints)."""
+    return float(np.interp(t_s - start_s, traj.times_s, waypoint_travel_m(traj)))
 
 
 def timed_start_ns(now_ns: int, lead_s: float, grid_s: float) -> int:
