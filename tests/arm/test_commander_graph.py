@@ -5,7 +5,7 @@ from pathlib import Path as FsPath
 
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from rosgraph_msgs.msg import Clock
@@ -140,3 +140,56 @@ def test_a_contact_still_on_its_way_at_the_end_of_the_approach_is_not_taken_for_
     assert done[0].message == "contact", v
     assert int(v["observation_stamp_ns"]) == late_ns
     assert all(from_pointcloud2(m)["label"][0] == fields.LABEL_CONTACT for m in contacts)  # no free-space point
+
+
+def test_an_approach_stops_when_the_sensor_falls_silent_and_is_repeated_once_it_is_back(ros_graph):
+    """The test plays the sensor driver's progress messages (the rig's sensor is off): they stop in the
+    middle of the approach. The arm must stop within about ``sensor_silence_s`` (not press on blind),
+    stay there while the driver is silent, then retract and make the same approach again."""
+    g = ros_graph
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    trajs = g.collect(topics.JOINT_TRAJECTORY, JointTrajectory, qos.COMMANDS)
+    clock = g.collect(topics.CLOCK, Clock, qos.CLOCK)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.start("sim", SIM)
+    g.start("arm", ARM + NO_START + ["-p", "sensor_silence_s:=0.25"])
+    decided_pub = g.node.create_publisher(DiagnosticStatus, topics.SENSOR_DECIDED, qos.SENSOR)
+    silent = [False]
+
+    def play_driver():
+        if clock and not silent[0]:
+            decided_pub.publish(DiagnosticStatus(name="tactile_sensor", message="decided", values=[
+                KeyValue(key="decided_through_ns", value=str(stamps.stamp_ns(clock[-1].clock))),
+                KeyValue(key="contacts_sent", value="0")]))
+
+    g.node.create_timer(0.01, play_driver)
+    g.wait_for(lambda: clock and len(poses) > 5 and done.publishers and trajs.publishers
+               and decided_pub.get_subscription_count(), 30, "the rig's clock and the commander's joint states")
+
+    def sim_s():
+        return stamps.stamp_s(clock[-1].clock)
+
+    def tip(m):
+        return np.array([m.pose.position.x, m.pose.position.y, m.pose.position.z])
+
+    pre, direction = np.array([0.40, 0.20, 0.06]), np.array([0.0, 1.0, 0.0])  # free space: no contact
+    _publish_touch(g, pre, direction, [[0.42, 0.12, 0.10], pre], 4_000_000_000)
+    g.wait_for(lambda: len(trajs) >= 2, 40, "the approach trajectory")
+    start_s = stamps.stamp_s(trajs[1].header.stamp)
+    approach = np.array([p.positions for p in trajs[1].points])
+    g.wait_for(lambda: sim_s() > start_s + 0.4, 20, "the approach under way")
+    silent[0], silent_s = True, sim_s()
+    g.wait_for(lambda: len(trajs) >= 3, 20, "the stop")
+    assert not trajs[2].points  # an empty trajectory: stop and hold
+    g.wait_for(lambda: sim_s() > silent_s + 1.5, 20, "a while of silence")
+    assert len(trajs) == 3 and not done  # stopped and waiting, not retracting blind
+    # The tip went at most about sensor_silence_s (plus the control tick and delivery) at approach speed.
+    moved_m = float(np.linalg.norm(tip(poses[-1]) - pre))
+    expected_m = (silent_s - start_s) * 0.02
+    assert moved_m < expected_m + 0.35 * 0.02, (moved_m, expected_m)
+    silent[0] = False
+    g.wait_for(lambda: done, 40, "touch_done")
+    v = done_values(done[0])
+    assert done[0].message == "free_space" and "repeated" in v["reason"], v
+    assert len(trajs) == 6  # path, approach, stop, retract, approach, retract
+    np.testing.assert_array_equal(np.array([p.positions for p in trajs[4].points]), approach)  # the same motion

@@ -8,7 +8,7 @@ import pytest
 from tactile_common import fields
 from tactile_driver.commander_api import TaskResult
 from tactile_driver.safety import EStopLatch, OutsideWorkspace
-from tactile_driver.touch_executor import TouchExecutor, TouchRequest
+from tactile_driver.touch_executor import SENSOR_RETRIES, TouchExecutor, TouchRequest
 from tactile_driver.trajectory import TimedTrajectory
 
 
@@ -27,7 +27,9 @@ class FakeArm:
         self.results = list(results)  # one TaskResult per verb, in order
         self.plan_error = plan_error
         self.calls = []
-        self.cfg = SimpleNamespace(dry_run=False, approach_speed_mps=0.02, approach_step_m=0.005)
+        self.cfg = SimpleNamespace(dry_run=False, approach_speed_mps=0.02, approach_step_m=0.005,
+                                   sensor_confirm_timeout_s=10.0)
+        self.sensor_decided_s = np.inf  # the driver has judged every frame (a test sets it behind)
         self.estop = EStopLatch()
         self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06 + q[0]]), np.eye(3)))
         self.tip_xyz = np.zeros(3)
@@ -48,7 +50,9 @@ class FakeArm:
     def _verb(self, name, length):
         """A result, or (result, contact xyz) for a verb stopped by a contact."""
         self.calls.append(name)
-        result, contact = self.results.pop(0), None
+        result, contact, lost = self.results.pop(0), None, False
+        if result == "sensor_lost":  # an approach the commander stopped for a silent sensor
+            result, lost = TaskResult.ABORTED, True
         if isinstance(result, tuple):
             result, xyz = result
             contact = np.zeros((), dtype=fields.CONTACT_DTYPE)[()]
@@ -60,6 +64,7 @@ class FakeArm:
         self.odometer_m += length
         self.motion_time_s += 0.3
         self._last = SimpleNamespace(result=result, reason=result.name, traj=_traj(length), contact=contact,
+                                     sensor_lost=lost,
                                      contact_stamp_ns=42 if contact is not None or result == TaskResult.CONTACT else 0)
         return True
 
@@ -174,3 +179,49 @@ def test_estop_during_dwell_skips_the_retract():
     ex.update()
     assert done[0].outcome == "aborted" and done[0].reason == "e-stop"
     assert "retract" not in arm.calls
+
+
+def test_an_approach_stopped_for_a_silent_sensor_waits_for_it_retracts_and_approaches_again():
+    arm = FakeArm([TaskResult.SUCCEEDED, "sensor_lost", TaskResult.SUCCEEDED, TaskResult.CONTACT,
+                   TaskResult.SUCCEEDED])
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append((p, s, sweep)), done.append)
+    ex.submit(TouchRequest(7, np.array([0.4, 0.2, 0.06]), np.array([0.0, 1.0, 0.0]), np.zeros((1, 3))))
+    ex.update()  # path -> approach
+    arm.sensor_decided_s = arm.t - 1.0  # the driver fell behind
+    ex.update()  # approach stopped: wait for the driver
+    for _ in range(5):
+        arm.t += 0.3
+        ex.update()
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach"] and not done  # the arm waits
+    arm.sensor_decided_s = arm.t  # the driver judged the frames up to now
+    for _ in range(6):
+        arm.t += 0.3
+        ex.update()
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract", "approach", "retract"]
+    r = done[0]
+    assert r.outcome == "contact" and r.observation_stamp_ns == 42 and "repeated" in r.reason
+
+
+def test_a_sensor_that_stays_silent_ends_the_touch_after_a_retract():
+    arm = FakeArm([TaskResult.SUCCEEDED, "sensor_lost", TaskResult.SUCCEEDED])
+    arm.sensor_decided_s = -np.inf  # the driver never speaks again
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append(p), done.append)
+    ex.submit(TouchRequest(7, np.array([0.4, 0.2, 0.06]), np.array([0.0, 1.0, 0.0]), np.zeros((1, 3))))
+    for _ in range(30):  # 9 s of node clock: still waiting
+        arm.t += 0.3
+        ex.update()
+    assert not done and "retract" not in arm.calls
+    for _ in range(10):  # past sensor_confirm_timeout_s (10 s): leave the surface, give up
+        arm.t += 0.3
+        ex.update()
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract"]
+    assert done[0].outcome == "aborted" and "silent" in done[0].reason and free == []
+
+
+def test_an_approach_stopped_for_the_sensor_again_and_again_ends_the_touch():
+    arm = FakeArm([TaskResult.SUCCEEDED] + ["sensor_lost", TaskResult.SUCCEEDED] * SENSOR_RETRIES + ["sensor_lost"])
+    free, done = run(arm)
+    assert [c for c in arm.calls if c != "plan"].count("approach") == SENSOR_RETRIES + 1
+    assert done[0].outcome == "aborted" and done[0].reason.startswith("approach:") and arm.results == []

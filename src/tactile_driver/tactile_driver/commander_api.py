@@ -20,7 +20,9 @@ Safety (always on): every tip waypoint must lie in the workspace box
 sent; ``/arm/estop`` (latched Bool) stops and refuses motion until released;
 joint states older than ``watchdog_timeout_s`` (steady clock, so it also
 fires when a simulated clock stops) stop the motion within one
-``control_period_s``. With ``dry_run`` the planned trajectory goes to the
+``control_period_s``; an approach (the guarded move) stops when the sensor
+driver has judged no frame for ``sensor_silence_s`` (node clock): a blind
+finger must not press on (:attr:`sensor_silent_s`, ``_Task.sensor_lost``). With ``dry_run`` the planned trajectory goes to the
 inspection topic only and the task completes at once.
 
 A slide (:mod:`tactile_driver.slide_loop`) is a closed loop at the servo's
@@ -95,6 +97,7 @@ class CommanderConfig:
     goal_time_tolerance_s: float = 2.0
     contact_latency_s: float = 0.25
     sensor_confirm_timeout_s: float = 10.0  # a driver that has not judged the end of an approach by then: abort
+    sensor_silence_s: float = 0.25  # a moving approach with the driver's frames this far behind: stop (0 = off)
     start_lead_s: float = 0.0  # > 0: trajectories start this long after they are sent (header.stamp), not on receipt
     start_grid_s: float = 0.0  # > 0: and on a multiple of this (the simulated rig's tick), for identical sampling
     watchdog_timeout_s: float = 0.5
@@ -118,6 +121,7 @@ class _Task:
     contact_stamp_ns: int = 0
     reason: str = ""
     joint_states_lost: bool = False  # ended for stale/missing joint states: worth a retry once they flow
+    sensor_lost: bool = False  # an approach stopped because the sensor fell silent: worth a retry once it is back
     extra: dict = field(default_factory=dict)
 
 
@@ -338,6 +342,11 @@ class ArmCommander:
     def stop(self) -> None:
         """Stop now and hold (empty trajectory); the current task ends CANCELED."""
         self._halt(TaskResult.CANCELED, "stop requested")
+
+    def sensor_silent_s(self, since_s: float = -np.inf) -> float:
+        """How long (node clock) the driver has judged no frame, counted from ``since_s`` at the earliest
+        (0 when it has judged frames up to now; inf before its first word)."""
+        return max(0.0, self.now_s() - max(self.sensor_decided_s, since_s))
 
     def watchdog_stale(self) -> bool:
         """No joint state within ``watchdog_timeout_s`` (never in a dry run): a move would be rejected."""
@@ -566,6 +575,14 @@ class ArmCommander:
         if self.watchdog.is_stale(now) and gap_s < 0.5 * self.watchdog.timeout_s:
             task.joint_states_lost = True
             self._halt(TaskResult.ABORTED, f"joint states stale for {self.watchdog.age_s(now):.2f} s")
+            return
+        if (task.kind == "approach" and self.cfg.sensor_silence_s > 0 and np.isfinite(self.sensor_decided_s)
+                and self.now_s() < task.start_s + task.traj.duration_s
+                and self.sensor_silent_s(task.start_s) > self.cfg.sensor_silence_s):
+            task.sensor_lost = True
+            self.counters["sensor_silence_stops"] = self.counters.get("sensor_silence_stops", 0) + 1
+            self._halt(TaskResult.ABORTED, f"the sensor driver judged no frame for "
+                       f"{self.sensor_silent_s(task.start_s):.2f} s: stopped (a blind approach)")
             return
         if task.kind == "slide":
             return  # ended by its own loop (_slide_tick), the e-stop or the watchdog above

@@ -100,6 +100,9 @@ PARAMS = {
                      "tick), so the rig samples every motion identically (0 = no grid)", {"ge": 0.0}),
     "sensor_confirm_timeout_s": (_D.sensor_confirm_timeout_s, "an approach at full depth waits this long (node "
                                  "clock) for the driver to judge its last frames, then aborts", {"gt": 0.0}),
+    "sensor_silence_s": (_D.sensor_silence_s, "an approach stops when the sensor driver has judged no frame for "
+                         "this long (node clock), retracts once the driver is back and approaches again "
+                         "(0 = off; a rig without the driver never stops for it)", {"ge": 0.0}),
     "watchdog_timeout_s": (_D.watchdog_timeout_s, "joint states older than this (steady clock) stop motion", {"gt": 0.0}),
     "control_period_s": (_D.control_period_s, "watchdog / completion check period (steady clock)", {"gt": 0.0}),
     "move_to_start": (True, "at start-up move the tip to start_tip_xyz_m (the explorer waits for it there)"),

@@ -9,8 +9,13 @@ without contact publishes the free-space point (tip centre, label 0).
 A contact on the path (the map said free space there) is an observation
 like any other: the arm stops, backs off the surface (``back_off``) and the
 touch ends as ``contact`` (reason ``path: unexpected contact ...``).
-Any other abort (e-stop, stale joint states, time-out) ends the touch as
-``aborted``. In dry-run mode the three motions are planned and published
+An approach the commander stopped because the sensor fell silent
+(``sensor_lost``: the finger must not press on blind) waits until the driver
+has judged the frames up to the stop, retracts to where the approach began
+(joint space: the same joints every time) and approaches again, at most
+``SENSOR_RETRIES`` times; the redo is the same motion, so the touch observes
+what it would have without the outage. Any other abort (e-stop, stale joint
+states, time-out) ends the touch as ``aborted``. In dry-run mode the three motions are planned and published
 for inspection only and the touch ends as ``aborted`` (reason ``dry_run``).
 No message handling here: the node passes the commander and two publish callbacks.
 
@@ -48,6 +53,9 @@ OUTCOME_CONTACT = TouchOutcome.CONTACT
 OUTCOME_FREE_SPACE = TouchOutcome.FREE_SPACE
 OUTCOME_UNREACHABLE = TouchOutcome.UNREACHABLE
 OUTCOME_ABORTED = TouchOutcome.ABORTED
+
+#: Approaches stopped for a silent sensor that are retried within one touch.
+SENSOR_RETRIES = 2
 
 
 @dataclass
@@ -143,8 +151,34 @@ class TouchExecutor:
                 return self._done(OUTCOME_ABORTED, f"slide: back_off: {arm.last_task.reason}")
             self._end_xyz = np.asarray(arm.back_off_xyz, dtype=float)
             self._state = "retract"
+        elif self._state == "sensor_wait":
+            waited_s = arm.now_s() - self._sensor_stop_s
+            back = arm.sensor_decided_s >= self._sensor_stop_s
+            if not back and waited_s < arm.cfg.sensor_confirm_timeout_s:
+                return
+            if not arm.retract():
+                return self._done(OUTCOME_ABORTED, f"approach: sensor silent; retract: {arm.last_task.reason}")
+            self._state = "sensor_retract" if back else "sensor_gone"
+        elif self._state in ("sensor_retract", "sensor_gone"):
+            if result != TaskResult.SUCCEEDED:
+                return self._done(OUTCOME_ABORTED, f"approach: sensor silent; retract: {task.reason}")
+            if self._state == "sensor_gone":
+                return self._done(OUTCOME_ABORTED, f"approach: the sensor driver was silent for more than "
+                                                   f"{arm.cfg.sensor_confirm_timeout_s:g} s (retracted)")
+            depth = self.slide_approach_length_m if slide else self.approach_length_m
+            if not arm.approach(self._req.approach_dir, depth):
+                return self._done(OUTCOME_ABORTED, f"approach: {arm.last_task.reason}")
+            self._state = "approach"
         elif self._state == "approach":
             self._travel_planned_m += task.traj.length_m
+            if (result == TaskResult.ABORTED and getattr(task, "sensor_lost", False) and not arm.estop.engaged
+                    and self._sensor_retries < SENSOR_RETRIES):
+                self._sensor_retries += 1
+                self._sensor_stop_s = arm.now_s()
+                self._reason = "; ".join(filter(None, [self._reason, f"approach stopped ({task.reason}), "
+                                                                     "retracted and repeated"]))
+                self._state = "sensor_wait"
+                return self.update()
             if slide and result == TaskResult.CONTACT and not arm.cfg.dry_run:
                 return self._start_slide(task.contact_stamp_ns, task.contact)
             if arm.cfg.dry_run:
@@ -189,6 +223,7 @@ class TouchExecutor:
         self._end_xyz = None
         self._first_obs_ns, self._slide, self._onset_xyz = None, None, None
         self._dwelt_s = 0.0  # robot time of the dwell (not a motion)
+        self._sensor_retries, self._sensor_stop_s = 0, 0.0
         if req.is_slide and (self.slide_servo is None or self.arm.cfg.dry_run):
             return self._done(OUTCOME_UNREACHABLE, "slide goal: this commander does not slide"
                               + (" in dry run" if self.arm.cfg.dry_run else ""))
