@@ -23,6 +23,7 @@ import numpy as np
 
 from .cores import make_estimator, make_planner
 from .evaluation import Evaluator
+from .exploration_cycle import CycleConfig
 from .experiment import Experiment
 from .motion import MotionModel, polyline_length_m
 from .progress import observe, stop_reason, touch_record
@@ -50,7 +51,7 @@ class ExplorationLoop:
         # are not replayed here, so the rig's joints would not be the graph's after one.
         self.poker = RigFinger(experiment, self.evaluator.obj) if self.touch == "poke" else self.finger
         explorer = experiment.node_params("explorer")
-        self.max_unreachable = int(explorer.get("max_unreachable", 10))
+        self.max_unreachable = int(explorer.get("max_unreachable", CycleConfig.max_unreachable))  # as the explorer
         self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01))
 
     @property
@@ -74,7 +75,7 @@ class ExplorationLoop:
                 stopped = f"planner: {plan.status}: {plan.message}"
                 break
             path = np.vstack([tip[None, :], plan.path_xyz])
-            slide, hit = None, None
+            slide = None
             if self.touch == "slide" and np.isfinite(plan.slide_length_m):
                 # Approach (or the path's contact), slide along the surface, back off (slide_touch).
                 hit = self.finger.path_contact(path, len(touches))
@@ -82,8 +83,7 @@ class ExplorationLoop:
                 result, slide, tip = st.approach, st.slide, st.tip_xyz
                 travel_m += st.travel_m
                 time_s += st.time_s
-                free_m = st.path_followed_m
-                hit = None if free_m is None else hit
+                followed_m = st.path_followed_m if hit is not None else None  # a path contact: how far
                 contact = result.contact
                 point = result.point_xyz if contact else result.tip_xyz_at_stop
                 # a miss: the guarded approach swept free space from the pre-touch point to the probe end
@@ -103,8 +103,7 @@ class ExplorationLoop:
                 unreachable_in_row = 0
                 contact, point, normal, sweep, tip = poke.contact, poke.point_xyz, poke.normal_xyz, poke.sweep_xyz, \
                     np.asarray(poke.end_xyz, dtype=float)
-                free_m = poke.path_followed_m
-                hit = free_m
+                free_m = followed_m = poke.path_followed_m
                 if free_m is None:
                     path_m = polyline_length_m(path)
                     travel_m += path_m + 2.0 * poke.approach_m
@@ -123,7 +122,7 @@ class ExplorationLoop:
             update_ms = (time.perf_counter() - t1) * 1e3
             record = touch_record(len(touches), plan.target_xyz, contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
-                                  path_xyz=path, path_followed_m=None if hit is None else free_m, slide=slide,
+                                  path_xyz=path, path_followed_m=followed_m, slide=slide,
                                   stream=stream, contacts_used=used)
             touches.append(record)
             if progress is not None:
