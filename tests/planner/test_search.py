@@ -11,7 +11,7 @@ from scipy.stats import norm
 from tactile_common.fields import KIND_LATTICE, VARIANCE_MAP_DTYPE
 from tactile_planner.maps import MapLattice, parse_variance_map
 from tactile_planner.planner import TouchPlanner, load_params
-from tactile_planner.search import search_field, search_map
+from tactile_planner.search import ring_radii_m, ring_search_map, search_field, search_map
 
 CONFIG = Path(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
 
@@ -70,7 +70,8 @@ def test_search_candidates_lie_on_the_search_surface_facing_less_probable_space(
 
 
 def test_the_planner_searches_instead_of_stopping_and_says_so():
-    params = dict(load_params(str(CONFIG)), strategy="info_travel")
+    # the probability search alone (the coverage rings come first when nothing was touched: below)
+    params = dict(load_params(str(CONFIG)), strategy="info_travel", search_ring_spacing_m=0.0)
     tip = np.array([0.38, -0.12, 0.06])
     res = TouchPlanner.from_params(params, seed=1).plan(_as_map(_lost_lattice()), tip)
     assert res.ok and res.message.startswith("search"), res.message
@@ -98,3 +99,72 @@ def test_a_search_never_probes_the_same_spot_twice():
     d = np.linalg.norm(np.array(targets)[:, None, :2] - np.array(targets)[None, :, :2], axis=2)
     assert d[np.triu_indices(len(targets), 1)].min() > params["revisit_radius_m"]
     assert parse_variance_map(m)[1].xyz.shape[0] == 0  # the map itself never had candidates
+
+
+# -- coverage rings: when the probability search has nothing left (or nothing was ever touched) ------
+
+def test_ring_radii_start_at_the_workspace_scale_alternate_and_leave_no_gap_wider_than_a_probe():
+    lat = _lost_lattice()
+    step = 0.04
+    radii = np.array(ring_radii_m(lat, step))
+    assert radii[0] == pytest.approx(0.25 * 0.3)  # a quarter of the smallest horizontal extent
+    assert np.all(np.diff(np.abs(radii - radii[0])) >= -1e-12)  # nearest to the first ring first
+    X, Y = np.meshgrid(*lat.axes, indexing="ij")
+    d = np.hypot(X - 0.5, Y - 0.0).ravel()  # the lattice's centre, computed here
+    covered = np.abs(d[:, None] - radii[None, :]).min(axis=1)
+    assert covered[d >= 0.5 * step].max() <= 0.5 * step + 1e-9  # every node within half a step of a ring
+    assert radii.min() >= 0.5 * step and radii.max() <= np.hypot(0.15, 0.15) + 1e-9
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_ring_candidates_lie_on_the_ring_face_outwards_and_stay_on_the_lattice(dim):
+    if dim == 2:
+        lat = _lost_lattice()
+        centre = np.array([0.5, 0.0])
+    else:
+        ax = (np.linspace(0.35, 0.65, 24), np.linspace(-0.15, 0.15, 24), np.linspace(0.0, 0.22, 18))
+        grids = np.meshgrid(*ax, indexing="ij")
+        lat = MapLattice(axes=ax, mean_m=0.05 + 0 * grids[0], variance_m2=1e-3 + 0 * grids[0], plane_z_m=0.0)
+        centre = np.array([0.5, 0.0, 0.0])  # on the table, under the workspace's middle
+    radius, spacing, inset = 0.115, 0.02, 0.02
+    search_lat, c = ring_search_map(lat, radius, spacing, min_z_m=0.015, inset_m=inset)
+    p = c.xyz[:, :dim]
+    np.testing.assert_allclose(np.linalg.norm(p - centre, axis=1), radius, atol=1e-12)
+    np.testing.assert_allclose(c.normal[:, :dim], (p - centre) / radius, atol=1e-12)
+    lo = np.array([a[0] for a in lat.axes]) + inset
+    hi = np.array([a[-1] for a in lat.axes]) - inset
+    assert np.all((p >= lo - 1e-12) & (p <= hi + 1e-12))
+    if dim == 3:
+        assert p[:, 2].min() >= 0.015
+    # about `spacing` apart: every candidate has a neighbour within 1.6 spacings, none closer than half
+    d = np.linalg.norm(p[:, None] - p[None], axis=2) + np.eye(len(p))
+    assert d.min() > 0.5 * spacing and d.min(axis=1).max() < 1.6 * spacing
+    from scipy.interpolate import RegularGridInterpolator
+    s_at = RegularGridInterpolator(lat.axes, search_lat.mean_m)(p)
+    assert np.abs(s_at).max() < 2e-3  # the planning field's zero level set is the ring (lattice interpolation)
+
+
+def test_a_lost_object_is_searched_ring_by_ring_each_spot_once():
+    """No estimated surface and nothing touched yet: the GP mean far from the misses is the prior plus
+    the kernel's extrapolation, so the planner covers the workspace with rings, nearest first, and
+    never probes a spot twice; with the rings off it probes the most probable region instead."""
+    params = dict(load_params(str(CONFIG)), strategy="info_travel")
+    planner = TouchPlanner.from_params(params, seed=1)
+    tip = np.array([0.38, -0.12, 0.06])
+    m = _as_map(_lost_lattice())
+    radii = ring_radii_m(_lost_lattice(), 0.01 + 0.03)  # standoff + max depth (config defaults)
+    targets, rings = [], []
+    for _ in range(40):  # the same map every time (the misses taught nothing): the search moves on
+        res = planner.plan(m, tip)
+        assert res.ok and "coverage ring" in res.message, res.message
+        targets.append(res.target_xyz[:2])
+        rings.append(float(res.message.split("r = ")[1].split(" m")[0]))
+    t = np.array(targets)
+    d = np.linalg.norm(t[:, None] - t[None], axis=2)
+    assert d[np.triu_indices(len(t), 1)].min() > params["revisit_radius_m"]
+    assert rings[0] == pytest.approx(radii[0], abs=1e-3)
+    order = [radii.index(min(radii, key=lambda r: abs(r - x))) for x in rings]
+    assert order == sorted(order) and order[-1] >= 1  # ring after ring, the first one exhausted
+    np.testing.assert_allclose(np.linalg.norm(t - [0.5, 0.0], axis=1), rings, atol=1e-9)
+    off = TouchPlanner.from_params(dict(params, search_ring_spacing_m=0.0), seed=1).plan(m, tip)
+    assert off.ok and "most probable" in off.message

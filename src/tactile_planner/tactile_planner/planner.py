@@ -25,7 +25,7 @@ from tactile_common.touch_geometry import MotionModel, TouchGeometry
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
 from .paths import path_length_m, shortcut
-from .search import object_lost, search_map
+from .search import object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
@@ -54,6 +54,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                         "fraction of the lattice on its inside, where the object is most probable "
                         "(tactile_planner.search); 0 = stop with no_candidates / all_unreachable",
                         {"ge": 0.0, "lt": 1.0}),
+    "search_ring_spacing_m": (0.02, "when the probability search has nothing left to probe: coverage rings around "
+                              "the workspace centre (2D circles, 3D hemispheres on the table), one approach-length "
+                              "apart, candidates this far apart on each, nearest ring first "
+                              "(tactile_planner.search; 0 = off)", {"ge": 0.0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -204,23 +208,47 @@ class TouchPlanner:
                                     lattice.variance_m2[sl], lattice.plane_z_m)
         q = float(p["search_quantile"])
         min_z = float(p["min_tip_z_m"]) if dim == 3 else -np.inf
-        where = f"probing the {q:.0%} of the lattice where the object is most probable"
         if not len(cands) and q > 0 and object_lost(lattice, min_z):  # search for it
-            found = search_map(lattice, q, min_z)
-            if found is not None:
-                return self._plan_on(*found, tip, excluded_targets, f"search (no estimated surface: {where}): ")
+            searched = self._search(lattice, tip, excluded_targets, q, min_z, "no estimated surface", lost=True)
+            if searched is not None:
+                return searched
         res = self._plan_on(lattice, cands, tip, excluded_targets, "")
         if res.status in ("all_unreachable", "no_candidates") and q > 0:
             # The estimate's surface cannot be touched any more (every candidate blocked, excluded or
             # in a pocket of free space the tip cannot leave), yet the object is somewhere in the
-            # workspace: search where it is most probable rather than end the run.
-            found = search_map(lattice, q, min_z)
-            if found is not None:
-                searched = self._plan_on(*found, tip, excluded_targets,
-                                         f"search ({res.status} on the estimate: {res.message}; {where}): ")
-                if searched.ok:
-                    return searched
+            # workspace: search for it rather than end the run.
+            searched = self._search(lattice, tip, excluded_targets, q, min_z,
+                                    f"{res.status} on the estimate: {res.message}")
+            if searched is not None and searched.ok:
+                return searched
         return res
+
+    def _search(self, lattice, tip, excluded_targets, q: float, min_z: float, why: str,
+                lost: bool = False) -> PlanResult | None:
+        """Search for the object where it is most probable (:func:`~tactile_planner.search.search_map`).
+        When it is ``lost`` (no estimated surface at all), the coverage rings come first
+        (:func:`~tactile_planner.search.ring_search_map`, nearest ring first): the mean far from the
+        misses is then the prior and the kernel's extrapolation, not evidence. Otherwise (a surface the
+        tip cannot touch) no rings: the estimate says where the object is. The first plan that is ok,
+        else the probability search's answer (None: no search surface at all)."""
+        p = self.params
+        spacing = float(p["search_ring_spacing_m"])
+        geometry = TouchGeometry.from_params(p)
+
+        if lost and spacing > 0:
+            for radius in ring_radii_m(lattice, geometry.approach_length_m):
+                # the pre-touch point must be on the lattice too
+                ring = ring_search_map(lattice, radius, spacing, min_z, geometry.pretouch_offset_m)
+                if ring is not None:
+                    res = self._plan_on(*ring, tip, excluded_targets, f"search ({why}; coverage ring "
+                                        f"r = {radius:.3f} m around the workspace centre): ")
+                    if res.ok:
+                        return res
+        found = search_map(lattice, q, min_z)
+        if found is None:
+            return None
+        return self._plan_on(*found, tip, excluded_targets, f"search ({why}; probing the {q:.0%} of the "
+                             f"lattice where the object is most probable): ")
 
     def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str) -> PlanResult:
         """Choose among ``cands`` on ``lattice`` (the estimate's, or the search field's when

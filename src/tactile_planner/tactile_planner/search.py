@@ -97,16 +97,96 @@ def search_map(lattice: MapLattice, quantile: float, min_z_m: float = -np.inf,
     if not len(pts):
         return None
     pts = pts[_farthest_points(pts, int(max_candidates))]
-    interp = lambda field: RegularGridInterpolator(lattice.axes, field)(pts)  # noqa: E731
-    grad = np.column_stack([interp(g) for g in np.gradient(s, *lattice.axes)])
+    grad = np.column_stack([RegularGridInterpolator(lattice.axes, g)(pts) for g in np.gradient(s, *lattice.axes)])
     norm = np.linalg.norm(grad, axis=1, keepdims=True)
     normal = np.divide(grad, norm, out=np.zeros_like(grad), where=norm > 1e-12)
+    return _searching(lattice, s, pts, normal)
+
+
+def _searching(lattice: MapLattice, field_m: np.ndarray, pts: np.ndarray,
+               normals: np.ndarray) -> tuple[MapLattice, Candidates]:
+    """The lattice with ``field_m`` in place of μ, and candidates at ``pts`` (K, dim) with unit
+    ``normals`` (K, dim), carrying the estimate's μ and σ² there (2D: at the plane height)."""
+    interp = lambda field: RegularGridInterpolator(lattice.axes, field)(pts)  # noqa: E731
     xyz = np.zeros((len(pts), 3))
     xyz[:, : lattice.dim] = pts
     normal3 = np.zeros((len(pts), 3))
-    normal3[:, : lattice.dim] = normal
+    normal3[:, : lattice.dim] = normals
     if lattice.dim == 2:
         xyz[:, 2] = lattice.plane_z_m
     cands = Candidates(xyz=xyz, normal=normal3, mean_m=interp(lattice.mean_m),
                        variance_m2=np.maximum(interp(lattice.variance_m2), 0.0))
-    return replace(lattice, mean_m=s), cands
+    return replace(lattice, mean_m=field_m), cands
+
+
+def ring_radii_m(lattice: MapLattice, step_m: float, first_m: Optional[float] = None) -> list[float]:
+    """Radii of the coverage rings around :func:`ring_centre` (m), in the order they are searched:
+    ``first_m`` (default a quarter of the smallest horizontal extent, the size of an object the
+    workspace is made for), then alternately ``step_m`` further in and out, down to ``step_m / 2``
+    and up to the farthest lattice corner."""
+    if not step_m > 0:
+        raise ValueError(f"ring step must be positive, got {step_m}")
+    lo, hi = np.array([a[0] for a in lattice.axes]), np.array([a[-1] for a in lattice.axes])
+    r0 = 0.25 * float(np.min((hi - lo)[:2])) if first_m is None else float(first_m)
+    c = ring_centre(lattice)[: lattice.dim]
+    far = float(np.max(np.linalg.norm(np.array(np.meshgrid(*zip(lo, hi))).reshape(lattice.dim, -1).T - c, axis=1)))
+    radii, k = [r0], 1
+    while True:
+        inner, outer = r0 - k * step_m, r0 + k * step_m
+        if inner < 0.5 * step_m and outer > far:
+            return radii
+        radii += [r for r in (inner, outer) if 0.5 * step_m <= r <= far]
+        k += 1
+
+
+def ring_centre(lattice: MapLattice) -> np.ndarray:
+    """Centre of the coverage rings: the middle of the lattice (3D: on its floor, the table), world."""
+    c = np.array([0.5 * (a[0] + a[-1]) for a in lattice.axes] + [0.0] * (3 - lattice.dim))
+    if lattice.dim == 3:
+        c[2] = lattice.axes[2][0]
+    else:
+        c[2] = lattice.plane_z_m
+    return c
+
+
+def _ring_points(dim: int, radius_m: float, spacing_m: float) -> np.ndarray:
+    """Unit directions about ``spacing_m`` apart on a circle (2D) or an upper hemisphere (3D,
+    Fibonacci lattice), (K, dim)."""
+    if dim == 2:
+        k = max(3, int(np.ceil(2 * np.pi * radius_m / spacing_m)))
+        a = 2 * np.pi * np.arange(k) / k
+        return np.column_stack([np.cos(a), np.sin(a)])
+    k = max(4, int(np.ceil(2 * np.pi * radius_m ** 2 / spacing_m ** 2)))  # hemisphere area / spacing²
+    i = np.arange(k) + 0.5
+    z = i / k  # uniform in z on (0, 1]: uniform in area on the hemisphere
+    phi = np.pi * (1 + 5 ** 0.5) * i
+    rho = np.sqrt(1 - z ** 2)
+    return np.column_stack([rho * np.cos(phi), rho * np.sin(phi), z])
+
+
+def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_z_m: float = -np.inf,
+                    inset_m: float = 0.0) -> Optional[tuple[MapLattice, Candidates]]:
+    """The coverage search of one ring: the lattice with s = |x − c| − r in place of μ (paths keep
+    off the ring) and candidates ``spacing_m`` apart on it, normals pointing away from the centre c
+    (:func:`ring_centre`), so each probe sweeps the ring's width towards the centre.
+
+    Used when the object is lost and the probability search (:func:`search_map`) has nothing left
+    to probe: the GP's mean far from every observation is the prior's shape plus the kernel's
+    extrapolation, not evidence, so the rings cover the workspace instead, ring after ring
+    (:func:`ring_radii_m`). Candidates farther than ``inset_m`` inside the lattice only (3D: at or
+    above ``min_z_m``); their mean and variance are the estimate's (μ, σ²), so the strategies
+    prefer the unexplored parts of the ring (high σ) near the tip. None when no point is left."""
+    c = ring_centre(lattice)
+    dirs = _ring_points(lattice.dim, radius_m, spacing_m)
+    pts = c[: lattice.dim] + radius_m * dirs
+    lo = np.array([a[0] for a in lattice.axes]) + inset_m
+    hi = np.array([a[-1] for a in lattice.axes]) - inset_m
+    keep = np.all((pts >= lo) & (pts <= hi), axis=1)
+    if lattice.dim == 3:
+        keep &= pts[:, 2] >= min_z_m
+    pts, dirs = pts[keep], dirs[keep]
+    if not len(pts):
+        return None
+    grids = np.meshgrid(*lattice.axes, indexing="ij")
+    s = np.sqrt(sum((g - c[k]) ** 2 for k, g in enumerate(grids))) - radius_m
+    return _searching(lattice, s, pts, dirs)
