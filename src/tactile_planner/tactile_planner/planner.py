@@ -24,6 +24,7 @@ from tactile_common.touch_geometry import MotionModel, TouchGeometry
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
+from .pocket import pocket_entries
 from .paths import path_length_m, shortcut
 from .search import object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
@@ -63,6 +64,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
     "tip_radius_m": (0.01, "fingertip radius", {"gt": 0.0}),
     "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps", {"ge": 0}),
+    "pocket_entry_m": (0.03, "a pre-touch point inside the path margin (a pocket of the estimate) is entered along "
+                       "its approach axis from up to this far out along the normal, keeping only the finger's "
+                       "own clearance on that segment (tactile_planner.pocket; 0 = off)", {"ge": 0.0}),
+    "pocket_gap_m": (0.002, "skin clearance from the estimated surface on a pocket's entry segment", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -163,6 +168,7 @@ class TouchPlanner:
             known_tolerance_m=float(p["known_tolerance_m"]),
         )
         self.last_graph: FreeSpaceGraph | None = None
+        self.last_why: dict[str, np.ndarray] = {}  # of the last candidate set planned on
         #: Targets chosen so far. Touching a place again teaches nothing when the
         #: finger cannot reach it (it lands on the same rim each time), so they
         #: are skipped; ``reset()`` forgets them.
@@ -319,6 +325,25 @@ class TouchPlanner:
             why["last segment not free"] = reachable & ~graph.segments_free(
                 graph.xyz[np.maximum(term_node, 0)], pretouch)
             reachable &= ~why["last segment not free"]
+        # a pre-touch point in a pocket of the estimate: entered along its approach axis (tactile_planner.pocket)
+        entry = np.full((m, 3), np.nan)
+        pocket = valid & ~hard & ~reachable & (why["no free pre-touch point"] | why.get(
+            "last segment not free", np.zeros(m, bool)))
+        if pocket.any() and float(p["pocket_entry_m"]) > 0:
+            e_xyz, e_node, e_len = pocket_entries(graph, pretouch[pocket], normal[pocket], float(p["pocket_entry_m"]),
+                                                  float(p["tip_radius_m"]) + float(p["pocket_gap_m"]),
+                                                  int(p["attach_reach"]))
+            got = e_node >= 0
+            got[got] = comp[e_node[got]] == comp[start]
+            rows = np.flatnonzero(pocket)[got]
+            entry[rows] = e_xyz[got]
+            term_node[rows] = e_node[got]
+            term_len[rows] = e_len[got] + np.linalg.norm(e_xyz[got] - pretouch[rows], axis=1)
+            reachable[rows] = True
+            for k in ("no free pre-touch point", "last segment not free", "in another free-space component than the tip"):
+                if k in why:
+                    why[k] = why[k] & ~reachable
+        self.last_why = why  # per candidate, why it cannot be chosen (diagnostics; the message counts them)
         # a search probes each spot once: a miss there is already in the estimate
         revisiting = bool(reachable.any() and not (reachable & ~revisit).any()) and not searching
         if not revisiting:
@@ -358,7 +383,8 @@ class TouchPlanner:
             if slide.index >= 0:
                 idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)
-        pts = np.vstack([tip[None], graph.xyz[nodes], pretouch[idx][None]])
+        via = entry[idx][None] if np.isfinite(entry[idx]).all() else np.zeros((0, 3))  # a pocket's entry point
+        pts = np.vstack([tip[None], graph.xyz[nodes], via, pretouch[idx][None]])
         if bool(p["smooth_path"]):
             pts = shortcut(graph, pts)
         pts = _dedupe(pts)
