@@ -55,8 +55,9 @@ def read_obj(path):
 def sphere_estimate(dim, n_axis, **kw):
     """Prior = the true circle/sphere and contacts on it with its normals: the posterior
     mean is the signed distance exactly (zero residuals), the variance is not the prior's."""
+    # the free-space point as an equality observation (noise 1e-4, as the dense reference below)
     params = {"mode": f"{dim}d", f"lattice.points_per_axis_{dim}d": n_axis, "prior.type": "given",
-              "prior.centre_m": CENTRE.tolist(), "prior.radius_m": RADIUS, **kw}
+              "prior.centre_m": CENTRE.tolist(), "prior.radius_m": RADIUS, "free_space.model": "equality", **kw}
     est = ShapeEstimator.from_params(params)
     if dim == 3:
         normals = fibonacci_sphere(8)
