@@ -144,27 +144,36 @@ def test_ring_candidates_lie_on_the_ring_face_outwards_and_stay_on_the_lattice(d
     assert np.abs(s_at).max() < 2e-3  # the planning field's zero level set is the ring (lattice interpolation)
 
 
-def test_a_lost_object_is_searched_ring_by_ring_each_spot_once():
-    """No estimated surface and nothing touched yet: the GP mean far from the misses is the prior plus
-    the kernel's extrapolation, so the planner covers the workspace with rings, nearest first, and
-    never probes a spot twice; with the rings off it probes the most probable region instead."""
+def test_a_lost_object_is_searched_where_most_probable_then_ring_by_ring_each_spot_once():
+    """No estimated surface: the planner probes where the object is most probable; once every spot
+    there was probed (the same map every time: the misses taught nothing), it covers the workspace
+    with rings, nearest first, and never probes a spot twice; with the rings off it ends there."""
     params = dict(load_params(str(CONFIG)), strategy="info_travel")
     planner = TouchPlanner.from_params(params, seed=1)
     tip = np.array([0.38, -0.12, 0.06])
     m = _as_map(_lost_lattice())
     radii = ring_radii_m(_lost_lattice(), 0.01 + 0.03)  # standoff + max depth (config defaults)
-    targets, rings = [], []
-    for _ in range(40):  # the same map every time (the misses taught nothing): the search moves on
+    targets, kinds, rings = [], [], []
+    for _ in range(200):
         res = planner.plan(m, tip)
-        assert res.ok and "coverage ring" in res.message, res.message
+        if not res.ok:  # every ring used up: the workspace is covered
+            break
         targets.append(res.target_xyz[:2])
-        rings.append(float(res.message.split("r = ")[1].split(" m")[0]))
+        kinds.append("ring" if "coverage ring" in res.message else "probable")
+        if kinds[-1] == "ring":
+            rings.append(float(res.message.split("r = ")[1].split(" m")[0]))
+    assert kinds[0] == "probable" and "ring" in kinds
+    first_ring = kinds.index("ring")
+    assert set(kinds[first_ring:]) == {"ring"}  # the probable region was used up first
     t = np.array(targets)
     d = np.linalg.norm(t[:, None] - t[None], axis=2)
     assert d[np.triu_indices(len(t), 1)].min() > params["revisit_radius_m"]
     assert rings[0] == pytest.approx(radii[0], abs=1e-3)
     order = [radii.index(min(radii, key=lambda r: abs(r - x))) for x in rings]
-    assert order == sorted(order) and order[-1] >= 1  # ring after ring, the first one exhausted
-    np.testing.assert_allclose(np.linalg.norm(t - [0.5, 0.0], axis=1), rings, atol=1e-9)
-    off = TouchPlanner.from_params(dict(params, search_ring_spacing_m=0.0), seed=1).plan(m, tip)
-    assert off.ok and "most probable" in off.message
+    assert order == sorted(order) and len(set(order)) >= 3  # ring after ring, each one exhausted
+    assert not res.ok and res.status == "all_unreachable"  # it ends only once the rings are used up
+    np.testing.assert_allclose(np.linalg.norm(t[first_ring:] - [0.5, 0.0], axis=1), rings, atol=1e-9)
+    off = TouchPlanner.from_params(dict(params, search_ring_spacing_m=0.0), seed=1)
+    for _ in range(first_ring):
+        off.plan(m, tip)
+    assert not off.plan(m, tip).ok  # without the rings the search ends where the probable region does

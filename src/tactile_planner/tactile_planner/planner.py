@@ -59,6 +59,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                               "the workspace centre (2D circles, 3D hemispheres on the table), one approach-length "
                               "apart, candidates this far apart on each, nearest ring first "
                               "(tactile_planner.search; 0 = off)", {"ge": 0.0}),
+    "search_rings_first": (False, "a lost object: the coverage rings before the probability search (the 3D "
+                           "default, with equality free-space observations: the probability search then follows "
+                           "the kernel's extrapolation; docs/planner.md)"),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -231,18 +234,26 @@ class TouchPlanner:
 
     def _search(self, lattice, tip, excluded_targets, q: float, min_z: float, why: str,
                 lost: bool = False) -> PlanResult | None:
-        """Search for the object where it is most probable (:func:`~tactile_planner.search.search_map`).
-        When it is ``lost`` (no estimated surface at all), the coverage rings come first
-        (:func:`~tactile_planner.search.ring_search_map`, nearest ring first): the mean far from the
-        misses is then the prior and the kernel's extrapolation, not evidence. Otherwise (a surface the
-        tip cannot touch) no rings: the estimate says where the object is. The first plan that is ok,
-        else the probability search's answer (None: no search surface at all)."""
+        """Search for the object where it is most probable (:func:`~tactile_planner.search.search_map`);
+        when that has nothing reachable left and the object is ``lost`` (no estimated surface at all),
+        the coverage rings (:func:`~tactile_planner.search.ring_search_map`, nearest ring first; before
+        the probability search with ``search_rings_first``). Not
+        for a surface the tip cannot touch: the estimate says where the object is. The first plan
+        that is ok, else the probability search's answer (None: no search surface at all)."""
         p = self.params
         spacing = float(p["search_ring_spacing_m"])
         geometry = TouchGeometry.from_params(p)
 
-        if lost and spacing > 0:
-            for radius in ring_radii_m(lattice, geometry.approach_length_m):
+        rings_first = bool(p["search_rings_first"])
+
+        def probable() -> PlanResult | None:
+            found = search_map(lattice, q, min_z)
+            return None if found is None else self._plan_on(
+                *found, tip, excluded_targets,
+                f"search ({why}; probing the {q:.0%} of the lattice where the object is most probable): ")
+
+        def rings() -> PlanResult | None:
+            for radius in ring_radii_m(lattice, geometry.approach_length_m) if lost and spacing > 0 else ():
                 # the pre-touch point must be on the lattice too
                 ring = ring_search_map(lattice, radius, spacing, min_z, geometry.pretouch_offset_m)
                 if ring is not None:
@@ -250,11 +261,14 @@ class TouchPlanner:
                                         f"r = {radius:.3f} m around the workspace centre): ")
                     if res.ok:
                         return res
-        found = search_map(lattice, q, min_z)
-        if found is None:
             return None
-        return self._plan_on(*found, tip, excluded_targets, f"search ({why}; probing the {q:.0%} of the "
-                             f"lattice where the object is most probable): ")
+
+        if rings_first and (res := rings()) is not None:
+            return res
+        first = probable()
+        if first is not None and first.ok or rings_first:
+            return first
+        return rings() or first
 
     def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str) -> PlanResult:
         """Choose among ``cands`` on ``lattice`` (the estimate's, or the search field's when
@@ -329,7 +343,9 @@ class TouchPlanner:
         entry = np.full((m, 3), np.nan)
         pocket = valid & ~hard & ~reachable & (why["no free pre-touch point"] | why.get(
             "last segment not free", np.zeros(m, bool)))
-        if pocket.any() and float(p["pocket_entry_m"]) > 0:
+        # 2D only: in 3D the vertical finger cannot follow (measured: the rig refused such goals until the
+        # run ended on "10 unreachable goals in a row", docs/benchmarks.md)
+        if dim == 2 and pocket.any() and float(p["pocket_entry_m"]) > 0:
             e_xyz, e_node, e_len = pocket_entries(graph, pretouch[pocket], normal[pocket], float(p["pocket_entry_m"]),
                                                   float(p["tip_radius_m"]) + float(p["pocket_gap_m"]),
                                                   int(p["attach_reach"]))
