@@ -65,3 +65,17 @@ def test_the_equality_model_pulls_the_mean_to_the_value_where_the_inequality_mod
     ineq.add_observation(np.array([0.6, 0.08, 0.06]), None, 0)
     assert float(eq.predict(x)[0][0]) == pytest.approx(A, abs=1e-3)
     assert float(ineq.predict(x)[0][0]) >= mu0 - 1e-9
+
+
+def test_a_free_space_point_deep_inside_a_confident_estimate_pins_f_at_the_value():
+    """α = (a − μ)/s ≫ 1 (the estimate sure the point is inside, the finger passed there): the truncated
+    variance is lost to cancellation in floating point; the observation must still be the strongest
+    (f = a at the contact noise), never dropped as uninformative."""
+    est = _est()
+    est.predict(np.array([[0.5, 0.0]]))
+    a = np.array([0.5, 0.0, 0.06])
+    row = est._free_space_row(a[:2], 1e-4)
+    assert row is not None and row[1] >= est.contact_var
+    # force the extreme: a prediction with μ = −1 m and s = 1 µm at the point
+    est._model = lambda: type("P", (), {"predict": staticmethod(lambda q: (np.array([-1.0]), np.array([1e-12])))})()
+    assert est._free_space_row(a[:2], 1e-4) == (A, est.contact_var)

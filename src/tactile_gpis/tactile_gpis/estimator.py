@@ -379,7 +379,9 @@ class ShapeEstimator:
         alpha = (self.free_value - mu) / s
         lam = float(np.exp(-0.5 * alpha ** 2 - 0.5 * np.log(2 * np.pi) - log_ndtr(-alpha)))
         v = s2 * (1.0 - lam * (lam - alpha))
-        if not (0.0 < v < s2 * (1.0 - 1e-3)):
+        if not v > 1e-12 * s2:  # far on the wrong side (α ≫ 1, v lost to cancellation): f is pinned at a
+            return self.free_value, self.contact_var
+        if v >= s2 * (1.0 - 1e-3):
             return None  # the constraint already holds with near certainty: no information
         m = mu + s * lam
         r = 1.0 / (1.0 / v - 1.0 / s2)
