@@ -152,7 +152,9 @@ def test_an_approach_stops_when_the_sensor_falls_silent_and_is_repeated_once_it_
     clock = g.collect(topics.CLOCK, Clock, qos.CLOCK)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
     g.start("sim", SIM)
-    g.start("arm", ARM + NO_START + ["-p", "sensor_silence_s:=0.25"])
+    # 1 s of node clock (250 ms wall at x4: this test's own driver emulation must not lag that much under
+    # load); a 50 mm depth gives a 3 s approach, so the stop comes well before its end
+    g.start("arm", ARM + NO_START + ["-p", "sensor_silence_s:=1.0", "-p", "max_depth_m:=0.05"])
     decided_pub = g.node.create_publisher(DiagnosticStatus, topics.SENSOR_DECIDED, qos.SENSOR)
     silent = [False]
 
@@ -186,10 +188,14 @@ def test_an_approach_stops_when_the_sensor_falls_silent_and_is_repeated_once_it_
     # The tip went at most about sensor_silence_s (plus the control tick and delivery) at approach speed.
     moved_m = float(np.linalg.norm(tip(poses[-1]) - pre))
     expected_m = (silent_s - start_s) * 0.02
-    assert moved_m < expected_m + 0.35 * 0.02, (moved_m, expected_m)
+    assert moved_m < expected_m + 1.1 * 0.02, (moved_m, expected_m)
     silent[0] = False
     g.wait_for(lambda: done, 40, "touch_done")
     v = done_values(done[0])
     assert done[0].message == "free_space" and "repeated" in v["reason"], v
-    assert len(trajs) == 6  # path, approach, stop, retract, approach, retract
-    np.testing.assert_array_equal(np.array([p.positions for p in trajs[4].points]), approach)  # the same motion
+    # path, approach, stop, retract, approach, retract; should the emulated driver lag by the limit again
+    # under load, each further stop is the same triple: stop, retract, the same approach
+    assert len(trajs) >= 6 and (len(trajs) - 6) % 3 == 0, len(trajs)
+    for k in range(4, len(trajs) - 1, 3):
+        assert not trajs[k - 2].points  # a stop before each retract
+        np.testing.assert_array_equal(np.array([p.positions for p in trajs[k].points]), approach)  # the same motion
