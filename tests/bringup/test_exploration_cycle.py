@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from tactile_bringup.exploration_cycle import CycleConfig, ExplorationCycle, Phase
-from tactile_common.cycle import PlannerAnswer, TouchOutcome, TouchReport
+from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, TouchReport
 
 START = np.array([0.33, 0.0, 0.06])
 
@@ -45,9 +45,11 @@ class Rig:
         self.t += dt
         self.cycle.tick()
 
-    def answer(self, request=None, status="ok", detail=""):
+    def answer(self, request=None, status="ok", detail="", target=None):
         req = request or self.sent[-1]
-        self.cycle.on_answer(PlannerAnswer(req.request_id, status, detail, req.request_id if status == "ok" else 0, 5.0))
+        extra = None if target is None else {"target_xyz_m": ",".join(map(repr, target))}
+        self.cycle.on_answer(PlannerAnswer(req.request_id, status, detail, req.request_id if status == "ok" else 0, 5.0,
+                                           extra))
 
     def report(self, outcome=TouchOutcome.CONTACT, obs_ns=None, goal_ns=None):
         goal_ns = self.sent[-1].request_id if goal_ns is None else goal_ns
@@ -230,3 +232,41 @@ def test_each_request_names_the_nominal_start_of_its_touch():
     r.answer()
     r.report(TouchOutcome.ABORTED)  # stopped somewhere: the planner uses the measured pose
     assert r.sent[-1].start_xyz_m is None
+
+
+def test_every_request_carries_the_targets_so_far_and_those_reported_unreachable():
+    """The planner's memory travels with the request: a restarted planner is told the history."""
+    r = Rig(touches=5)
+    r.cycle.on_tip(START)
+    assert r.sent[0].visited_xyz_m == () and r.sent[0].excluded_xyz_m == ()
+    a, b, c = (0.41, 0.01, 0.06), (0.45, -0.02, 0.06), (0.5, 0.03, 0.06)
+    r.answer(target=a)
+    r.cycle.on_observation(5, np.zeros(1))
+    r.report(obs_ns=5)
+    assert r.sent[-1].visited_xyz_m == (a,) and r.sent[-1].excluded_xyz_m == ()
+    r.answer(target=b)
+    r.report(TouchOutcome.UNREACHABLE)
+    assert r.sent[-1].visited_xyz_m == (a, b) and r.sent[-1].excluded_xyz_m == (b,)
+    r.advance(CycleConfig().answer_timeout_s + 1)  # a re-sent request is the same request, history included
+    assert r.sent[-1] == r.sent[-2]
+    r.answer(target=c)
+    r.report(TouchOutcome.ABORTED)  # re-issued: the aborted goal's target is a target chosen so far
+    assert r.sent[-1].visited_xyz_m == (a, b, c) and r.sent[-1].excluded_xyz_m == (b,)
+    # through the request's key/values, bit for bit
+    assert PlanRequest.from_values(r.sent[-1].values()) == r.sent[-1]
+
+
+def test_an_answer_without_its_target_stops_the_history_rather_than_sending_a_wrong_one():
+    r = Rig(touches=5)
+    r.cycle.on_tip(START)
+    r.answer()  # a planner that does not name its target
+    r.cycle.on_observation(5, np.zeros(1))
+    r.report(obs_ns=5)
+    assert r.sent[-1].visited_xyz_m is None and r.sent[-1].excluded_xyz_m is None
+    assert "visited_xyz_m" not in r.sent[-1].values()
+
+
+@pytest.mark.parametrize("text", ["0.4,0.1", "0.4,0.1,nan", "a,b,c", "0.4,0.1,0.06;"])
+def test_a_malformed_history_is_a_clear_error(text):
+    with pytest.raises(ValueError, match="visited_xyz_m must be three finite numbers"):
+        PlanRequest.from_values({"request_id": "1", "visited_xyz_m": text})

@@ -13,8 +13,11 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from tactile_bringup.experiment import Experiment
+from tactile_bringup.loop import ExplorationLoop
 from tactile_bringup.report import check_report
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -91,9 +94,17 @@ def test_a_node_killed_mid_run_is_restarted_and_the_run_completes(domain_env, tm
     report = json.loads((out / "report.json").read_text())
     check_report(report)
     assert len(report["touches"]) == touches and report["summary"]["stopped_because"] == "touch budget"
-    # the estimate kept learning after the crash (8 touches of the default strategy on the ellipse: ~0.9)
     ious = [t["iou"] for t in report["touches"]]
-    assert ious[-1] > 0.85 and ious[-1] > ious[2], ious
+    assert ious[-1] > ious[2], ious  # the estimate kept learning after the crash
+    if victim in ("gpis_estimator", "soc_planner"):
+        # Nothing of the run was lost with the node: the restarted estimator re-reads the durable contacts,
+        # the restarted planner is told the run's history by each request. So the run makes the touches of
+        # an uninterrupted one (the offline loop of the same seed): same outcomes, targets, observations.
+        offline = ExplorationLoop(Experiment(mode="2d", touches=touches, seed=3)).run()["touches"]
+        assert [t["outcome"] for t in report["touches"]] == [t["outcome"] for t in offline]
+        target_gaps_mm = [1e3 * float(np.linalg.norm(np.subtract(a["target"], b["target"])))
+                          for a, b in zip(offline, report["touches"])]
+        assert max(target_gaps_mm) <= 0.5, target_gaps_mm
     # every recording of the run reads whole with an independent reader; together they hold every touch
     recordings = sorted(out.glob("run*.mcap"))
     assert recordings and all(p.stat().st_size > 0 for p in recordings)

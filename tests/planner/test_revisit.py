@@ -1,6 +1,7 @@
 """Targets already chosen are not chosen again; 3D candidates a vertical finger cannot touch are skipped."""
 
 import numpy as np
+import pytest
 
 from tactile_planner.planner import TouchPlanner
 from tactile_planner.synthetic import sphere_map
@@ -71,3 +72,23 @@ def test_earlier_targets_are_revisited_rather_than_stopping_when_nothing_else_is
     c = m[m["kind"] == 1]
     res = planner.plan(m, tip, np.stack([c["x"], c["y"], c["z"]], axis=1))
     assert res.status == "all_unreachable" and "near a target reported unreachable" in res.message
+
+
+@pytest.mark.parametrize("strategy", ["info_travel", "random", "uncertainty"])
+def test_a_fresh_planner_told_the_history_decides_as_the_one_that_lived_through_it(strategy):
+    """The planner's only memory is the targets chosen so far (and the k-th decision's random draws come
+    from (seed, k)): a planner restarted mid-run and given that history makes the same touch sequence."""
+    maps = [sphere_map(96, 2, seed=s) for s in (1, 2, 3, 4, 5)]
+    tip = np.array([0.33, 0.0, 0.06])
+    params = {"mode": "2d", "strategy": strategy, "revisit_radius_m": 0.005}
+    lived = TouchPlanner.from_params(params, seed=7)
+    targets = [lived.plan(m, tip).target_xyz for m in maps]
+    history = []
+    for m, expected in zip(maps, targets):
+        fresh = TouchPlanner.from_params(params, seed=7)
+        res = fresh.plan(m, tip, None, np.array(history).reshape(-1, 3))
+        assert res.ok and np.array_equal(res.target_xyz, expected)
+        history.append(res.target_xyz)
+    assert len({tuple(t) for t in targets}) == len(targets)  # the memory mattered: no target twice
+    # without the history a restarted planner repeats itself (what the history prevents)
+    assert np.array_equal(TouchPlanner.from_params(params, seed=7).plan(maps[0], tip).target_xyz, targets[0])

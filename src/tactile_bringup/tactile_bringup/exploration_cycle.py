@@ -18,6 +18,10 @@ is waited for forever:
   ``observation_timeout_s``: the touch is re-issued under a new id (a
   restarted commander ignores goals older than itself);
 - ``unreachable``: a new request (the planner excludes that target);
+- a planner that died and was restarted: every request carries the run's
+  history (the targets chosen so far and those reported unreachable, from
+  the answers and reports), so its answer is the one the dead planner
+  would have given;
 - more than ``max_retries`` of these in a row, ``max_unreachable``
   unreachable goals in a row, or a planner that has no goal: the run ends,
   with the reason in one line.
@@ -97,6 +101,11 @@ class ExplorationCycle:
         self._paths: dict[int, np.ndarray] = {}
         self._decision_ms: dict[int, float] = {}
         self._observations: dict[int, np.ndarray] = {}
+        # The planner's memory, kept here and sent with every request (PlanRequest): the targets of the
+        # goals so far, in order, and those reported unreachable. None once an answer did not name its target.
+        self._visited: Optional[list[tuple]] = []
+        self._excluded: list[tuple] = []
+        self._targets: dict[int, tuple] = {}  # goal stamp -> its target
 
     @property
     def finished(self) -> bool:
@@ -115,6 +124,7 @@ class ExplorationCycle:
         if self.phase is not Phase.PLANNING or self.request is None or answer.request_id != self.request.request_id:
             return  # an answer to another (older, re-sent) request
         if answer.ok:
+            self._remember_target(answer)
             self.goal_stamp_ns = answer.goal_stamp_ns
             self._decision_ms[answer.goal_stamp_ns] = answer.decision_ms
             self._enter(Phase.TOUCHING)
@@ -124,11 +134,13 @@ class ExplorationCycle:
             self._finish(f"planner: {answer.status}: {answer.detail}")
 
     def on_goal(self, stamp_ns: int, goal: Any) -> None:
-        self._goals[int(stamp_ns)] = goal
+        """The first goal of a stamp is kept: the one the commander runs (it runs a stamp once; a restarted
+        planner that answers an old request again must not rewrite what was touched)."""
+        self._goals.setdefault(int(stamp_ns), goal)
 
     def on_path(self, stamp_ns: int, path_xyz: np.ndarray) -> None:
-        """The planned free-space path of a goal (world, (K, 3)): drawn in the figure."""
-        self._paths[int(stamp_ns)] = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+        """The planned free-space path of a goal (world, (K, 3)): drawn in the figure. The first is kept."""
+        self._paths.setdefault(int(stamp_ns), np.asarray(path_xyz, dtype=float).reshape(-1, 3))
 
     def on_observation(self, stamp_ns: int, point: np.ndarray) -> None:
         self._observations[int(stamp_ns)] = point
@@ -139,6 +151,8 @@ class ExplorationCycle:
         if self.phase is not Phase.TOUCHING or report.goal_stamp_ns != self.goal_stamp_ns or self.report is not None:
             return  # another goal's report, or this one's again
         if report.outcome is TouchOutcome.UNREACHABLE:
+            if report.goal_stamp_ns in self._targets:
+                self._excluded.append(self._targets[report.goal_stamp_ns])
             self.unreachable_in_row += 1
             self.run.add_travel(report.travel_m, report.duration_s)
             self.log.warning(f"goal unreachable ({self.unreachable_in_row} in a row): re-planning")
@@ -210,7 +224,8 @@ class ExplorationCycle:
     def _new_request(self, min_map_stamp_ns: int) -> None:
         request_id = max(int(self._next_id()), self._last_id + 1)
         self._last_id = request_id
-        self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz)
+        history = (None, None) if self._visited is None else (tuple(self._visited), tuple(self._excluded))
+        self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history)
         self.goal_stamp_ns, self.report = None, None
         self._enter(Phase.PLANNING)
         self._publish()
@@ -232,6 +247,21 @@ class ExplorationCycle:
         else:
             self.log.warning(f"{why}: re-issuing the touch ({self.retries}/{self.cfg.max_retries})")
             self._new_request(self.last_obs_stamp_ns)
+
+    def _remember_target(self, answer: PlannerAnswer) -> None:
+        try:
+            target = answer.target_xyz_m
+        except ValueError:
+            target = None
+        if target is None:
+            if self._visited is not None:
+                self.log.warning(f"planner answer {answer.request_id} does not name its target: requests carry "
+                                 "no history from now on (a restarted planner may then repeat earlier targets)")
+            self._visited = None
+            return
+        self._targets[answer.goal_stamp_ns] = target
+        if self._visited is not None:
+            self._visited.append(target)
 
     def _enter(self, phase: Phase) -> None:
         self.phase = phase

@@ -122,7 +122,7 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                     taken: list) -> dict:
     """One graph session's touches into ``run``; returns its observations no touch took (by stamp)."""
     tip = np.asarray(exp.start_tip_xyz, dtype=float)
-    observations, goals, decision_ms, starts, done_goals, used = {}, {}, {}, {}, set(), set()
+    observations, goals, decision_ms, requests, done_goals, used = {}, {}, {}, {}, set(), set()
     for path in files:
         recording = Recording(path)
         wanted = [t for t in (topics.CONTACTS, topics.GOAL, topics.PLANNER_STATUS, topics.TOUCH_DONE,
@@ -134,17 +134,17 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
         types = {t: message_class(recording.topics[t].type_name) for t in wanted}
         for topic, _, data in recording.messages(wanted):
             msg = deserialize_message(data, types[topic])
-            if topic == topics.REQUEST:  # where each touch was planned from (request id = goal stamp)
-                req = request_from_msg(msg)
-                starts[req.request_id] = req.start_xyz_m
+            if topic == topics.REQUEST:  # where each touch was planned from, with the run's history
+                req = request_from_msg(msg)  # (request id = goal stamp)
+                requests[req.request_id] = req
                 continue
             if topic == topics.CONTACTS:
                 points = from_pointcloud2(msg)
                 stamp = stamp_ns(msg.header.stamp)
                 if len(points) and stamp not in used:
                     observations[stamp] = points[0]
-            elif topic == topics.GOAL:
-                goals[stamp_ns(msg.header.stamp)] = msg
+            elif topic == topics.GOAL:  # the first goal of a stamp: the one the commander ran
+                goals.setdefault(stamp_ns(msg.header.stamp), msg)
             elif topic == topics.PLANNER_STATUS:
                 values = {kv.key: kv.value for kv in msg.values}
                 if "decision_ms" in values:
@@ -167,9 +167,15 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                             taken.append(obs)
                             observations.pop(stamp)
                 if msg.message in ("contact", "free_space") and obs_ns in observations:
-                    if starts.get(goal_ns) is not None:
-                        tip = np.asarray(starts[goal_ns], dtype=float)
-                    plan = planner.plan(run.estimator.map_array(), tip) if planner is not None else None
+                    req = requests.get(goal_ns)
+                    if req is not None and req.start_xyz_m is not None:
+                        tip = np.asarray(req.start_xyz_m, dtype=float)
+                    excluded = visited = None  # the graph's history, when the request carried it
+                    if req is not None:
+                        excluded, visited = (None if h is None else np.array(h, dtype=float).reshape(-1, 3)
+                                             for h in (req.excluded_xyz_m, req.visited_xyz_m))
+                    plan = planner.plan(run.estimator.map_array(), tip, excluded, visited) \
+                        if planner is not None else None
                     used.add(obs_ns)
                     taken.append(observations[obs_ns])
                     record = run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,

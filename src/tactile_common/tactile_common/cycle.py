@@ -7,7 +7,9 @@ after a time-out) can tell a duplicate from a new event:
 - :class:`PlanRequest` (explorer → planner): ``request_id`` (ns, strictly
   increasing per run) and the stamp the map must at least have. A re-sent
   request keeps its id; a re-issued touch (nothing came back in time) gets a
-  new one.
+  new one. It also carries the run's history the decision depends on (the
+  targets chosen so far, those reported unreachable), so the planner keeps
+  no state of its own: a restarted planner answers as the one that died.
 - the goal and its path (planner → commander) carry ``header.stamp`` =
   the request id they answer, so answering one request twice gives the same
   goal stamp and the commander runs it once.
@@ -58,7 +60,8 @@ def _float(values: Mapping[str, str], key: str, default: float = 0.0) -> float:
         raise ValueError(f"{key} must be a number, got {text!r}") from None
 
 
-def _xyz_text(xyz: Optional[tuple]) -> str:
+def xyz_text(xyz: Optional[tuple]) -> str:
+    """A point as exact text, ``'x,y,z'`` (``repr``: it reads back bit for bit); None → ``''``."""
     return "" if xyz is None else ",".join(repr(float(v)) for v in xyz)
 
 
@@ -75,6 +78,23 @@ def _xyz(values: Mapping[str, str], key: str) -> Optional[tuple]:
     return xyz
 
 
+def _xyz_list_text(points: Optional[tuple]) -> Optional[str]:
+    return None if points is None else ";".join(xyz_text(p) for p in points)
+
+
+def _xyz_list(values: Mapping[str, str], key: str) -> Optional[tuple]:
+    """``'x,y,z;x,y,z'`` → ((x, y, z), ...); the key absent → None (not told), ``''`` → ()."""
+    text = values.get(key)
+    if text is None:
+        return None
+    if not text:
+        return ()
+    parts = text.split(";")
+    if "" in parts:
+        raise ValueError(f"{key} must be three finite numbers 'x,y,z' per point, ';' between points, got {text!r}")
+    return tuple(_xyz({key: part}, key) for part in parts)
+
+
 @dataclass(frozen=True)
 class PlanRequest:
     """Plan one touch on a map whose stamp is at least ``min_map_stamp_ns``.
@@ -85,28 +105,43 @@ class PlanRequest:
     not from the measured fingertip pose (which differs by the controller's
     tolerance), makes the graph's decisions those of the offline loop. None:
     plan from the measured pose (after an aborted touch).
+
+    ``visited_xyz_m``: the targets of this run's earlier goals, in order;
+    ``excluded_xyz_m``: those reported unreachable (world, m). With them the
+    answer is a function of the request and the map alone. None: not told
+    (the planner uses what it remembers).
     """
 
     request_id: int
     min_map_stamp_ns: int
     start_xyz_m: Optional[tuple] = None
+    visited_xyz_m: Optional[tuple] = None
+    excluded_xyz_m: Optional[tuple] = None
 
     def values(self) -> dict:
-        return {"request_id": str(self.request_id), "min_map_stamp_ns": str(self.min_map_stamp_ns),
-                "start_xyz_m": _xyz_text(self.start_xyz_m)}
+        out = {"request_id": str(self.request_id), "min_map_stamp_ns": str(self.min_map_stamp_ns),
+               "start_xyz_m": xyz_text(self.start_xyz_m)}
+        for key in ("visited_xyz_m", "excluded_xyz_m"):
+            text = _xyz_list_text(getattr(self, key))
+            if text is not None:
+                out[key] = text
+        return out
 
     @classmethod
     def from_values(cls, values: Mapping[str, str]) -> "PlanRequest":
         request_id = _int(values, "request_id", -1)
         if request_id < 0:
             raise ValueError("a plan request needs a non-negative request_id")
-        return cls(request_id, _int(values, "min_map_stamp_ns"), _xyz(values, "start_xyz_m"))
+        return cls(request_id, _int(values, "min_map_stamp_ns"), _xyz(values, "start_xyz_m"),
+                   _xyz_list(values, "visited_xyz_m"), _xyz_list(values, "excluded_xyz_m"))
 
 
 @dataclass(frozen=True)
 class PlannerAnswer:
     """The planner's answer to one request: ``status`` 'ok' (a goal with stamp
-    ``goal_stamp_ns`` was published) or why there is none."""
+    ``goal_stamp_ns`` was published) or why there is none. An 'ok' answer's
+    ``extra`` has the chosen target, ``target_xyz_m`` (world, m): the
+    explorer keeps it for the history of its next requests."""
 
     request_id: int
     status: str
@@ -118,6 +153,11 @@ class PlannerAnswer:
     @property
     def ok(self) -> bool:
         return self.status == "ok"
+
+    @property
+    def target_xyz_m(self) -> Optional[tuple]:
+        """The chosen target (None: not said); raises ValueError when malformed."""
+        return _xyz(self.extra or {}, "target_xyz_m")
 
     def values(self) -> dict:
         out = {"request_id": str(self.request_id), "detail": self.detail, "stamp_ns": str(self.goal_stamp_ns),
@@ -163,7 +203,7 @@ class TouchReport:
             "travel_m": f"{self.travel_m:.6f}",
             "duration_s": f"{self.duration_s:.6f}",
             "reason": self.reason,
-            "end_xyz_m": _xyz_text(self.end_xyz_m),
+            "end_xyz_m": xyz_text(self.end_xyz_m),
         }
         if self.is_slide:  # a poke's report is unchanged
             out.update({"slide_m": f"{self.slide_m:.6f}", "slide_stop": self.slide_stop,

@@ -1,8 +1,8 @@
 """soc_planner node: variance map + fingertip pose + request → goal pose, path, status.
 
 Wiring: /gpis/variance_map (MAP), /arm/fingertip_pose (SENSOR), /planner/request
-(diagnostic_msgs/DiagnosticStatus: request id + the map stamp to wait for),
-/arm/touch_done ('unreachable' → exclude that goal's target) →
+(diagnostic_msgs/DiagnosticStatus: request id, the map stamp to wait for, the
+run's history: targets so far and those unreachable), /arm/touch_done →
 TouchPlanner.plan → /planner/goal (PoseStamped, x-axis = −normal),
 /planner/path (nav_msgs/Path), /planner/status (the answer to every request).
 With ``touch: slide`` a slide goal also carries its direction (the goal's
@@ -13,7 +13,10 @@ Delivery (docs/architecture.md): goal and path are stamped with the request
 id they answer. A request seen again (re-sent, or handed over by the durable
 topic after a restart) gets its stored answer again, unchanged; of the
 requests waiting for a map only the newest is answered (older ones are
-superseded).
+superseded), and a request whose touch has ended is not answered again. The
+planner's memory (targets so far, those unreachable) comes with each
+request, so a restarted planner answers the current request as the dead one
+would have; without it (an older client), what this node remembers.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Header
 
 from tactile_common import qos, topics
-from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome
+from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, xyz_text
 from tactile_common.cycle_msgs import answer_msg, report_from_msg, request_from_msg
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
@@ -62,6 +65,7 @@ class SocPlannerNode(Node):
         self.answers: OrderedDict[int, tuple] = OrderedDict()  # request id -> (goal, path, status) messages
         self.goal_targets: dict[int, np.ndarray] = {}
         self.excluded: dict[int, np.ndarray] = {}  # goal stamp -> target reported unreachable
+        self.done_goals: set[int] = set()  # goal stamps (= request ids) whose touch has ended
         self.invalid_inputs = 0
         self.pub_goal = self.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
         self.pub_path = self.create_publisher(Path, topics.PATH, qos.EVENTS)
@@ -108,6 +112,8 @@ class SocPlannerNode(Node):
             self.invalid_inputs += 1
             self.get_logger().warn(f"invalid plan request ignored: {exc}")
             return
+        if req.request_id in self.done_goals and req.request_id not in self.answers:
+            return  # its touch has ended (a restarted planner handed the request history): no answer needed
         if req.request_id in self.answers:  # seen before: the same answer again
             for pub, answer in zip((self.pub_goal, self.pub_path, self.pub_status), self.answers[req.request_id]):
                 if answer is not None:
@@ -126,6 +132,7 @@ class SocPlannerNode(Node):
             self.invalid_inputs += 1
             self.get_logger().warn(f"invalid touch_done ignored: {exc}")
             return
+        self.done_goals.add(report.goal_stamp_ns)
         if report.outcome is not TouchOutcome.UNREACHABLE or report.goal_stamp_ns in self.excluded:
             return
         target = self.goal_targets.get(report.goal_stamp_ns)
@@ -145,8 +152,10 @@ class SocPlannerNode(Node):
         if start is None or self.map_stamp_ns < req.min_map_stamp_ns:
             return
         self.request = None
-        ex = np.array(list(self.excluded.values())).reshape(-1, 3)
-        res = self.planner.plan(self.map, start, ex)
+        # The request's history when it carries one (a restarted planner decides as before), else our memory.
+        excluded = req.excluded_xyz_m if req.excluded_xyz_m is not None else list(self.excluded.values())
+        visited = None if req.visited_xyz_m is None else np.array(req.visited_xyz_m, dtype=float).reshape(-1, 3)
+        res = self.planner.plan(self.map, start, np.array(excluded, dtype=float).reshape(-1, 3), visited)
         stamp = time_from_ns(req.request_id)  # the goal's id: the request it answers
         goal = path = None
         if res.ok:
@@ -220,6 +229,8 @@ class SocPlannerNode(Node):
             extra.update({k: str(v) for k, v in (
                 ("index", res.index), ("start_snapped", res.start_snapped), ("n_candidates", res.n_candidates),
                 ("n_unreachable", res.n_unreachable), ("n_excluded", res.n_excluded))})
+            if res.ok:
+                extra["target_xyz_m"] = xyz_text(res.target_xyz)
         goal_ns = request_id if res is not None and res.ok else 0
         return answer_msg(PlannerAnswer(request_id, status, message, goal_ns,
                                         res.decision_ms if res is not None else float("nan"), extra))

@@ -159,7 +159,6 @@ class TouchPlanner:
             raise ValueError("margin_m must be below standoff_m + tip_radius_m, or no pre-touch point is free")
         self.params = p
         self.seed = int(seed)
-        self.rng = np.random.default_rng(self.seed)
         self.backend = make_backend(p["backend"], float(p["cost_rate_per_m"]), float(p["max_rate_nats"]),
                                     str(p["solver"]), float(p["cg_rtol"]),
                                     float(p["cg_max_rate_nats"]))
@@ -174,13 +173,13 @@ class TouchPlanner:
         self.last_why: dict[str, np.ndarray] = {}  # of the last candidate set planned on
         #: Targets chosen so far. Touching a place again teaches nothing when the
         #: finger cannot reach it (it lands on the same rim each time), so they
-        #: are skipped; ``reset()`` forgets them.
+        #: are skipped; ``reset()`` forgets them. They are the planner's only
+        #: memory: the k-th decision draws its random numbers from (seed, k).
         self.visited: list[np.ndarray] = []
 
     def reset(self) -> None:
-        """Forget the chosen targets and restart the random generator (a new exploration)."""
+        """Forget the chosen targets (a new exploration)."""
         self.visited = []
-        self.rng = np.random.default_rng(self.seed)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], seed: int) -> "TouchPlanner":
@@ -189,9 +188,18 @@ class TouchPlanner:
 
     # ------------------------------------------------------------------
     def plan(self, map_array: np.ndarray, tip_xyz: np.ndarray,
-             excluded_targets: np.ndarray | None = None) -> PlanResult:
-        """Choose the next touch. Never raises on bad input: the status says why there is no goal."""
+             excluded_targets: np.ndarray | None = None,
+             visited_targets: np.ndarray | None = None) -> PlanResult:
+        """Choose the next touch. Never raises on bad input: the status says why there is no goal.
+
+        ``visited_targets`` ((K, 3), world): the targets chosen before this
+        decision, which replace the planner's memory (a restarted planner told
+        the run's history decides as the one that lived through it); None:
+        what this planner remembers. The chosen target is appended.
+        """
         t0 = time.perf_counter()
+        if visited_targets is not None:
+            self.visited = [row.copy() for row in np.asarray(visited_targets, dtype=float).reshape(-1, 3)]
         try:
             res = self._plan(map_array, tip_xyz, excluded_targets)
         except MapError as exc:
@@ -390,7 +398,8 @@ class TouchPlanner:
         ctx = SelectionContext(xyz=target, variance_m2=cands.variance_m2, cost=sol.cost, time_s=time_s,
                                reachable=reachable, tip_xyz=tip, travel_m=sol.travel_m,
                                approach_m=2.0 * float(p["standoff_m"]))
-        scores = score_candidates(p["strategy"], ctx, self.strategy_params, self.rng)
+        rng = np.random.default_rng([self.seed, len(self.visited)])  # the k-th decision's draws: (seed, k)
+        scores = score_candidates(p["strategy"], ctx, self.strategy_params, rng)
         idx = int(np.argmax(scores))
         slide = None
         if p["touch"] == "slide":  # the slide with the most variance removed per second (tactile_planner.slides)
