@@ -229,6 +229,11 @@ while kill -0 "$explorer_pid" 2>/dev/null; do
     [ "${names[$i]}" = explorer ] && continue
     kill -0 "${pids[$i]}" 2>/dev/null && continue
     code=0; wait "${pids[$i]}" 2>/dev/null || code=$?
+    if [ "$code" = 0 ] || [ "$code" = 130 ]; then
+      # A node stops cleanly only when told to (SIGINT from Ctrl-C, which reaches the whole process group,
+      # sometimes before bash runs its trap): the graph is being stopped, not crashing. Never restart it.
+      on_signal
+    fi
     if [ "$code" = 2 ] || [ "${restarts[$i]}" -ge "$MAX_RESTARTS" ]; then
       echo "explore.sh: ${names[$i]} exited unexpectedly (status $code); see $log_dir/${names[$i]}.log:" >&2
       tail -n 15 "$log_dir/${names[$i]}.log" >&2
@@ -243,7 +248,7 @@ while kill -0 "$explorer_pid" 2>/dev/null; do
     fi
     launch "$i"
   done
-  sleep 0.5
+  sleep 0.5 & wait $!  # the wait builtin returns at once on a trapped signal (a foreground sleep defers the trap)
 done
 if [ "$status" = 0 ]; then
   wait "$explorer_pid" || status=$?
