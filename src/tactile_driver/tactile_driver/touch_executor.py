@@ -131,10 +131,7 @@ class TouchExecutor:
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"path: {task.reason}")
             self._travel_planned_m += task.traj.length_m
-            depth = self.slide_approach_length_m if slide else self.approach_length_m
-            if not arm.approach(self._req.approach_dir, depth):
-                return self._done(OUTCOME_ABORTED, f"approach: {arm.last_task.reason}")
-            self._state = "approach"
+            return self._start_approach()
         elif self._state == "slide":
             self._slide = dict(task.extra)
             if result != TaskResult.SUCCEEDED:
@@ -165,10 +162,7 @@ class TouchExecutor:
             if self._state == "sensor_gone":
                 return self._done(OUTCOME_ABORTED, f"approach: the sensor driver was silent for more than "
                                                    f"{arm.cfg.sensor_confirm_timeout_s:g} s (retracted)")
-            depth = self.slide_approach_length_m if slide else self.approach_length_m
-            if not arm.approach(self._req.approach_dir, depth):
-                return self._done(OUTCOME_ABORTED, f"approach: {arm.last_task.reason}")
-            self._state = "approach"
+            return self._start_approach()  # the same approach again, from the same joints
         elif self._state == "approach":
             self._travel_planned_m += task.traj.length_m
             if (result == TaskResult.ABORTED and getattr(task, "sensor_lost", False) and not arm.estop.engaged
@@ -239,6 +233,13 @@ class TouchExecutor:
         if not self.arm.follow_path(path):
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
+
+    def _start_approach(self) -> None:
+        """The guarded approach from the pre-touch point along the goal's axis (a slide's: its own depth)."""
+        depth = self.slide_approach_length_m if self._req.is_slide else self.approach_length_m
+        if not self.arm.approach(self._req.approach_dir, depth):
+            return self._done(OUTCOME_ABORTED, f"approach: {self.arm.last_task.reason}")
+        self._state = "approach"
 
     def _start_slide(self, contact_stamp_ns: int, contact=None) -> None:
         """The approach (or the path) met the surface: slide from here."""
