@@ -7,8 +7,9 @@ The back-off waypoint is judged from the plan's own tip polyline measured here
 import numpy as np
 import pytest
 
-from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
+from tactile_driver.arm_motions import APPROACH_BOX_INSET_M, ArmMotions, path_point_before, timed_start_ns
 from tactile_driver.commander_api import CommanderConfig
+from tactile_driver.safety import OutsideWorkspace
 
 
 @pytest.fixture(scope="module")
@@ -63,3 +64,21 @@ def test_a_joint_move_ends_exactly_on_its_goal_in_steps_of_about_the_tip_step(mo
 ])
 def test_timed_starts_fall_on_the_tick_grid(now_ns, lead_s, grid_s, expected_ns):
     assert timed_start_ns(now_ns, lead_s, grid_s) == expected_ns
+
+
+def test_an_approach_is_shortened_to_end_inside_the_box_and_refused_when_it_cannot_reach_the_surface(motions):
+    """A guarded approach's depth is a bound: it ends inside the box (the floor above the table)."""
+    floor = motions.box.lower_xyz[2]
+    assert floor == pytest.approx(0.0 + 0.005 + 0.010)  # table + table margin + tip radius (CommanderConfig)
+    start = np.array([0.45, 0.0, floor + 0.025])
+    down = np.array([0.0, 0.0, -1.0])
+    depth = motions.approach_depth_m(start, down, 0.04, 0.01)
+    assert depth == pytest.approx(0.025 - APPROACH_BOX_INSET_M)
+    q0 = motions.tip_path(start[None], motions.home).positions_rad[-1]
+    approach = motions.tip_path((start + depth * down)[None], q0, 0.02, 0.005)  # in the box: no OutsideWorkspace
+    assert approach.tip_xyz[:, 2].min() >= floor
+    tilted = np.array([0.6, 0.0, -0.8])  # along the ray: the floor is 25 mm / 0.8 away
+    assert motions.approach_depth_m(start, tilted, 0.04) == pytest.approx(0.025 / 0.8 - APPROACH_BOX_INSET_M)
+    assert motions.approach_depth_m(start, [1.0, 0.0, 0.0], 0.04) == 0.04  # far from every face: unchanged
+    with pytest.raises(OutsideWorkspace, match="outside the safety box"):  # 5 mm left: the standoff is 10
+        motions.approach_depth_m(np.array([0.45, 0.0, floor + 0.005]), down, 0.04, 0.01)

@@ -41,6 +41,9 @@ class FakeArm:
     def now_s(self):
         return self.t
 
+    def approach_depth_m(self, start_xyz, direction_xyz, depth_m, min_depth_m=0.0):
+        return depth_m  # the box never shortens an approach here
+
     def plan(self, path, q_start=None, speed_mps=None, step_m=None):
         self.calls.append("plan")
         if self.plan_error:

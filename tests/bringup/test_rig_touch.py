@@ -99,3 +99,25 @@ def test_the_same_pokes_sense_the_same_bits(experiment):
         n = np.array([np.cos(angle), np.sin(angle), 0.0])
         ra, rb = a.poke(_plan(a, CENTRE + RADIUS_M * n, n)), b.poke(_plan(b, CENTRE + RADIUS_M * n, n))
         assert np.array_equal(ra.point_xyz, rb.point_xyz) and np.array_equal(ra.normal_xyz, rb.normal_xyz)
+
+
+def test_a_touch_near_the_table_gets_a_shorter_approach_and_one_below_the_floor_is_unreachable():
+    """3D: an upward approach onto a low surface would end below the box floor at full depth; it is
+    shortened to end inside the box (a free-space probe here: nothing stands on this part of the table).
+    A surface so low that the approach could not take the skin half the depth beyond it inside the
+    box (TouchGeometry.min_approach_m) is unreachable, nothing moved."""
+    rig = RigFinger(Experiment(mode="3d", object_name="sphere", touches=1, seed=0), make_object("sphere", mode="3d"))
+    floor = rig.motions.box.lower_xyz[2]
+    up = np.array([0.0, 0.0, 1.0])
+    low = np.array([0.40, 0.15, 0.03])  # pre-touch at 0.05 m; a full approach would end at 0.01
+    assert rig.geometry.pretouch_xyz(low, up)[2] - rig.geometry.approach_length_m < floor
+    res = rig.poke(_plan(rig, low, up))
+    assert res.outcome == "free_space", res
+    assert floor <= res.point_xyz[2] < floor + 1e-3  # the probe ended just inside the box
+    assert res.approach_m == pytest.approx(rig.geometry.pretouch_xyz(low, up)[2] - floor, abs=1e-3)
+    below = np.array([0.40, 0.15, 0.012])  # pre-touch at 0.032 m: 17 mm to the floor, 25 needed
+    assert rig.geometry.pretouch_xyz(below, up)[2] - rig.geometry.min_approach_m < floor
+    q = rig.q.copy()
+    res = rig.poke(_plan(rig, below, up))
+    assert res.outcome == "unreachable" and "outside the safety box" in res.reason, res
+    assert np.array_equal(rig.q, q)

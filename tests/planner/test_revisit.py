@@ -92,3 +92,26 @@ def test_a_fresh_planner_told_the_history_decides_as_the_one_that_lived_through_
     assert len({tuple(t) for t in targets}) == len(targets)  # the memory mattered: no target twice
     # without the history a restarted planner repeats itself (what the history prevents)
     assert np.array_equal(TouchPlanner.from_params(params, seed=7).plan(maps[0], tip).target_xyz, targets[0])
+
+
+def test_3d_candidates_the_tip_would_touch_below_the_lowest_tip_height_are_skipped():
+    """The shortest approach worth making (standoff + half the depth) from the pre-touch point
+    c + (standoff + r)·n ends at c + (r − depth/2)·n; below ``min_tip_z_m`` (the commander's box floor)
+    the commander refuses the touch: not chosen."""
+    center = (0.5, 0.0, 0.10)
+    m = sphere_map(40, 3, center=center, n_candidates=1, seed=2)
+    cand = _sphere_candidates(center, 0.05, 300)
+    r, standoff, depth, floor = 0.010, 0.010, 0.030, 0.015
+    rim = np.arange(0, len(cand), 6)[:40]  # candidates of every orientation moved near the table,
+    cand["z"][rim] = 0.018  # the most uncertain of all: those facing up (n_z > 0.6) cannot be probed
+    cand["variance"][rim] = 1.0
+    low = cand["z"] + (r - depth / 2) * cand["normal_z"] < floor
+    assert 5 < low[rim].sum() < 35
+    m = np.concatenate([m[m["kind"] == 0], cand])
+    planner = TouchPlanner.from_params({"mode": "3d", "strategy": "uncertainty", "min_normal_z": -1.0,
+                                        "tip_radius_m": r, "standoff_m": standoff, "max_depth_m": depth,
+                                        "min_tip_z_m": floor}, seed=0)
+    res = planner.plan(m, np.array([0.33, 0.0, 0.15]))
+    assert res.ok and res.target_xyz[2] + (r - depth / 2) * res.normal_xyz[2] >= floor
+    assert res.target_xyz[2] == pytest.approx(0.018)  # a rim candidate the tip can probe was chosen
+    assert np.array_equal(planner.last_why["touched below the lowest tip height"], low)

@@ -193,6 +193,7 @@ class RigFinger:
         cfg, m = self.cfg, self.motions
         try:  # the whole touch is planned before anything moves (tactile_driver.touch_executor)
             to_goal = m.tip_path(path, self.q)
+            depth_m = m.approach_depth_m(pretouch, direction, depth_m, self.geometry.min_approach_m)
             m.tip_path(pretouch + depth_m * direction, to_goal.positions_rad[-1], cfg.approach_speed_mps,
                        cfg.approach_step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
@@ -203,6 +204,7 @@ class RigFinger:
         q_origin = np.array(to_goal.positions_rad[-1], dtype=float)
         origin = m.model.fk(q_origin)[0]
         n = np.linalg.norm(direction)
+        depth_m = m.approach_depth_m(origin, direction, self.geometry.approach_length_m)  # as ArmCommander.approach
         approach = m.tip_path(origin + direction / n * depth_m, q_origin, cfg.approach_speed_mps,
                               cfg.approach_step_m)
         hit, _ = self._run(approach, settle_s=self.contact_latency_s)

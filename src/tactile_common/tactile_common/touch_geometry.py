@@ -9,7 +9,11 @@ estimated surface with outward unit normal ``n``:
   standoff_m + max_depth_m``, i.e. **``max_depth_m`` is how far the finger's
   skin may go beyond the estimated surface point** (the tip centre ends at
   ``c − (max_depth_m − tip_radius_m)·n``); it stops earlier on contact; no
-  contact by then is a free-space observation (the tip centre at the end);
+  contact by then is a free-space observation (the tip centre at the end).
+  The arm's safety box may shorten it (the depth is a bound, not a target),
+  down to ``min_approach_m = standoff_m + max_depth_m / 2``: an approach that
+  cannot take the skin at least half the depth beyond the estimated surface
+  cannot test it, and the touch is unreachable;
 - **retract**: back to ``p`` along the same line;
 - **back-off** after a contact met on a free-space path: the tip centre moves
   to ``c' + (tip_radius_m + standoff_m)·(t − c')/|t − c'|`` for the contact
@@ -50,6 +54,11 @@ class TouchGeometry:
     def approach_length_m(self) -> float:
         """Tip-centre travel of a full-depth approach: ``standoff_m + max_depth_m``."""
         return self.standoff_m + self.max_depth_m
+
+    @property
+    def min_approach_m(self) -> float:
+        """The shortest approach worth making when the safety box shortens one: ``standoff_m + max_depth_m / 2``."""
+        return self.standoff_m + 0.5 * self.max_depth_m
 
     @property
     def pretouch_offset_m(self) -> float:

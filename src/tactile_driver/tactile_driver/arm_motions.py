@@ -7,6 +7,8 @@ and plans (world frame, metres, radians, seconds):
 - :meth:`tip_path`: a tip polyline from given joints (box-checked, IK per
   waypoint, time-parameterised rest to rest): the free-space path, the
   guarded approach, a back-off away from a contact;
+- :meth:`approach_depth_m`: how deep a guarded approach goes (its depth
+  shortened to end inside the box);
 - :meth:`joint_move`: a joint-space straight line to given joints (the
   retract, a back-off along a path), every tip waypoint box-checked;
 - :func:`path_point_before`: the last waypoint of a followed path at least a
@@ -25,8 +27,13 @@ import numpy as np
 
 from tactile_driver.ik import IKSettings
 from tactile_driver.kinematics import ArmModel, home_configuration
-from tactile_driver.safety import WorkspaceBox
+from tactile_driver.safety import OutsideWorkspace, WorkspaceBox
 from tactile_driver.trajectory import MotionLimits, TimedTrajectory, plan_tip_path, time_parameterize
+
+
+#: A shortened approach ends this far inside the box (m): IK waypoints deviate from the line by
+#: up to ``ik_tol_m``, and the box check is exact.
+APPROACH_BOX_INSET_M = 5e-4
 
 
 class ArmMotions:
@@ -62,6 +69,24 @@ class ArmMotions:
                              step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad)
         self.box.check(traj.tip_xyz[1:])
         return traj
+
+    def approach_depth_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, depth_m: float,
+                         min_depth_m: float = 0.0) -> float:
+        """The depth of a guarded approach from ``start_xyz`` along ``direction_xyz``: ``depth_m``, or
+        less so that it ends ``APPROACH_BOX_INSET_M`` inside the safety box (the IK waypoints then
+        stay in it too).
+
+        Raises:
+            OutsideWorkspace: the shortened approach is below ``min_depth_m`` (it would not reach the
+                estimated surface, ``standoff_m`` ahead): the point ``min_depth_m`` along the approach.
+        """
+        d = np.asarray(direction_xyz, dtype=float)
+        d = d / np.linalg.norm(d)
+        depth = min(float(depth_m), self.box.reach_m(start_xyz, d) - APPROACH_BOX_INSET_M)
+        if depth < min_depth_m:
+            raise OutsideWorkspace(0, np.asarray(start_xyz, dtype=float) + min_depth_m * d, self.box.lower_xyz,
+                                   self.box.upper_xyz)
+        return depth
 
     def joint_move(self, q_start: np.ndarray, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
         """A joint-space straight line ``q_start`` → ``q_goal`` (exactly) in equal joint steps, as many as

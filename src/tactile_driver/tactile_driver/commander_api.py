@@ -180,7 +180,8 @@ class ArmCommander:
                            self.cfg.tip_speed_mps, self.cfg.waypoint_step_m)
 
     def approach(self, direction_xyz: np.ndarray, max_depth_m: float) -> bool:
-        """Guarded move along ``direction_xyz`` (world) for ``max_depth_m`` at ``approach_speed_mps``.
+        """Guarded move along ``direction_xyz`` (world) for ``max_depth_m`` at ``approach_speed_mps``,
+        shortened to end inside the safety box (:meth:`ArmMotions.approach_depth_m`).
 
         Ends as CONTACT on the first label-1 point on /tactile/contacts (the
         arm is stopped at once), or SUCCEEDED at full depth. ``retract()``
@@ -193,10 +194,20 @@ class ArmCommander:
         if self.tip_xyz is None and not self.cfg.dry_run:
             return self._reject("approach", "no joint state yet")
         q_origin, origin = self._plan_start()
-        ok = self._start("approach", origin + d / n * max_depth_m, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+        try:
+            depth_m = self.approach_depth_m(origin, d, max_depth_m)
+        except OutsideWorkspace as exc:
+            return self._reject("approach", str(exc))
+        ok = self._start("approach", origin + d / n * depth_m, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
         if ok:
             self.approach_origin_xyz, self.approach_origin_q = origin, np.array(q_origin, dtype=float)
         return ok
+
+    def approach_depth_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, depth_m: float,
+                         min_depth_m: float = 0.0) -> float:
+        """The depth an approach from ``start_xyz`` gets (:meth:`ArmMotions.approach_depth_m`; raises
+        OutsideWorkspace below ``min_depth_m``)."""
+        return self.motions.approach_depth_m(start_xyz, direction_xyz, depth_m, min_depth_m)
 
     def retract(self) -> bool:
         """Back to the joint configuration where the last approach began, at approach speed.

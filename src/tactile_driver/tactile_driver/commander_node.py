@@ -134,7 +134,8 @@ class ArmCommanderNode(Node):
         self.touches = TouchExecutor(self.arm, geometry.approach_length_m, p.dwell_s,
                                      self._publish_free_space, self._publish_done,
                                      back_off_clearance_m=p.standoff_m, slide_servo=servo,
-                                     slide_approach_length_m=p.standoff_m + servo.approach_depth_m)
+                                     slide_approach_length_m=p.standoff_m + servo.approach_depth_m,
+                                     min_approach_m=geometry.min_approach_m)
         self.arm.on_slide_contact = self._publish_slide_contact
         self.inbox = GoalInbox(started_ns)
         self.startup = StartupMove(self.arm, p.start_tip_xyz_m, p.start_clearance_z_m, START_ATTEMPTS,

@@ -1,7 +1,10 @@
 """Safety logic of the arm commander (ROS-free): workspace box, stale-state watchdog, e-stop latch.
 
 The box is checked on every tip waypoint before anything is sent: a target
-outside is rejected with the offending point, never clamped.
+outside is rejected with the offending point, never clamped. A guarded
+approach's depth is a bound, not a target: it is shortened to end inside the
+box (:meth:`WorkspaceBox.reach_m`), so a plate lying on the table is touched
+from above instead of refused because a full-depth approach would end in it.
 """
 
 from __future__ import annotations
@@ -60,6 +63,17 @@ class WorkspaceBox:
         """(N,) bool: point inside the box (NaN is outside)."""
         p = np.atleast_2d(np.asarray(points_xyz, dtype=float))
         return np.all((p >= self.lower_xyz) & (p <= self.upper_xyz), axis=1)
+
+    def reach_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray) -> float:
+        """How far the tip can go from ``start_xyz`` (inside the box) along ``direction_xyz`` and stay
+        inside: min over axes of the distance to the face it heads for (inf along no axis; 0 outside)."""
+        p, d = np.asarray(start_xyz, dtype=float), np.asarray(direction_xyz, dtype=float)
+        d = d / np.linalg.norm(d)
+        if not self.inside(p)[0]:
+            return 0.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_face = np.where(d > 0, (self.upper_xyz - p) / d, np.where(d < 0, (self.lower_xyz - p) / d, np.inf))
+        return float(np.min(to_face))
 
     def check(self, points_xyz: np.ndarray) -> None:
         """Raise :class:`OutsideWorkspace` for the first point outside the box."""

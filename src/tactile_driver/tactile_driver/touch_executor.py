@@ -78,9 +78,13 @@ class TouchExecutor:
     def __init__(self, arm: ArmCommander, approach_length_m: float, dwell_s: float,
                  publish_free_space: Callable[[np.ndarray, int, np.ndarray], None],
                  publish_done: Callable[[TouchReport], None], back_off_clearance_m: float = 0.01,
-                 slide_servo=None, slide_approach_length_m: Optional[float] = None) -> None:
+                 slide_servo=None, slide_approach_length_m: Optional[float] = None,
+                 min_approach_m: float = 0.0) -> None:
         if approach_length_m <= 0:
             raise ValueError("approach length (standoff + max depth) must be positive")
+        #: An approach the safety box shortens below this (TouchGeometry.min_approach_m: it could not
+        #: test the estimated surface) makes the touch unreachable.
+        self.min_approach_m = float(min_approach_m)
         self.slide_servo = slide_servo  # SlideServoConfig; None: slides are refused (unreachable)
         self.slide_approach_length_m = float(slide_approach_length_m or approach_length_m)
         self.arm = arm
@@ -223,8 +227,10 @@ class TouchExecutor:
                               + (" in dry run" if self.arm.cfg.dry_run else ""))
         depth = self.slide_approach_length_m if req.is_slide else self.approach_length_m
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
-        try:  # plan the whole touch before moving
+        try:  # plan the whole touch before moving (an approach too short to reach the surface: unreachable)
             to_goal = self.arm.plan(path)
+            depth = self.arm.approach_depth_m(req.pre_touch_xyz, req.approach_dir, depth,
+                                              min(self.min_approach_m, depth))
             self.arm.plan(req.pre_touch_xyz + depth * req.approach_dir,
                           q_start=to_goal.positions_rad[-1], speed_mps=self.arm.cfg.approach_speed_mps,
                           step_m=self.arm.cfg.approach_step_m)

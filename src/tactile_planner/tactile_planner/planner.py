@@ -66,6 +66,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
     "tip_radius_m": (0.01, "fingertip radius", {"gt": 0.0}),
+    "max_depth_m": (0.03, "how far the finger's skin may go beyond the estimated surface (the commander's approach); an approach the safety box shortens must keep half of it", {"gt": 0.0}),
     "attach_reach": (2, "a candidate's pre-touch point attaches to a free node within this many lattice steps", {"ge": 0}),
     "pocket_entry_m": (0.03, "a pre-touch point inside the path margin (a pocket of the estimate) is entered along "
                        "its approach axis from up to this far out along the normal, keeping only the finger's "
@@ -301,7 +302,8 @@ class TouchPlanner:
         if dim == 2:
             target[:, 2] = lattice.plane_z_m
             tip = np.array([tip[0], tip[1], lattice.plane_z_m])
-        pretouch = TouchGeometry.from_params(p).pretouch_xyz(target, normal)
+        geometry = TouchGeometry.from_params(p)
+        pretouch = geometry.pretouch_xyz(target, normal)
 
         # why a candidate cannot be chosen, by reason (a candidate may have several)
         why: dict[str, np.ndarray] = {}
@@ -314,6 +316,10 @@ class TouchPlanner:
             why["already targeted"] = np.any(d <= float(p["revisit_radius_m"]), axis=1)
         if dim == 3:
             why["facing down"] = normal[:, 2] < float(p["min_normal_z"])
+            # the shortest approach worth making (TouchGeometry.min_approach_m) would end below the
+            # lowest tip height, the floor of the arm's safety box: the commander refuses the touch
+            probe_z = pretouch[:, 2] - geometry.min_approach_m * normal[:, 2]
+            why["touched below the lowest tip height"] = probe_z < float(p["min_tip_z_m"])
         excluded = np.zeros(m, bool)
         for mask in why.values():
             excluded |= mask
