@@ -77,8 +77,9 @@ class ArmMotions:
         stay in it too).
 
         Raises:
-            OutsideWorkspace: the shortened approach is below ``min_depth_m`` (it would not reach the
-                estimated surface, ``standoff_m`` ahead): the point ``min_depth_m`` along the approach.
+            OutsideWorkspace: the shortened approach is below ``min_depth_m`` (the touch's shortest
+                useful approach, ``TouchGeometry.min_approach_m``); it names the point ``min_depth_m``
+                along the approach, outside the box.
         """
         d = np.asarray(direction_xyz, dtype=float)
         d = d / np.linalg.norm(d)
