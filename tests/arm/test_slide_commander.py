@@ -76,3 +76,24 @@ def test_stale_joint_states_stop_a_slide(arm):
         arm._update()  # the control tick (steady clock): no joint state for longer than the watchdog
     assert arm.get_result() == TaskResult.ABORTED and "stale" in arm.last_task.reason
     assert arm.last_task.joint_states_lost and arm.sent[-1].points == []
+
+
+def test_an_approach_toward_the_table_is_shortened_to_end_inside_the_box():
+    """ArmCommander.approach: 4 cm straight down from 2.5 cm above the box floor goes 2.45 cm
+    (the trajectory sent ends 0.5 mm above the floor, by forward kinematics), instead of being refused."""
+    rclpy.init()
+    node = rclpy.create_node("approach_depth_test")
+    try:
+        arm = ArmCommander(node, CommanderConfig(watchdog_timeout_s=5.0, publish_fingertip_pose=False))
+        sent = []
+        arm._pub_traj.publish = sent.append
+        floor = arm.box.lower_xyz[2]
+        arm.q0 = solve_ik(arm.model, np.array([0.45, 0.0, floor + 0.025]), arm.home, IKSettings()).q
+        _state(arm, 1.0)
+        assert arm.approach(np.array([0.0, 0.0, -1.0]), 0.04), arm.last_task.reason
+        end_q = [p.positions for p in sent[-1].points][-1]
+        end_z = arm.model.fk(np.array(end_q))[0][2]
+        assert floor <= end_z == pytest.approx(floor + 5e-4, abs=2e-4)
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
