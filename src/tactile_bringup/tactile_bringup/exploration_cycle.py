@@ -102,10 +102,11 @@ class ExplorationCycle:
         self._decision_ms: dict[int, float] = {}
         self._observations: dict[int, np.ndarray] = {}
         # The planner's memory, kept here and sent with every request (PlanRequest): the targets of the
-        # goals so far, in order, and those reported unreachable. None once an answer did not name its target.
-        self._visited: Optional[list[tuple]] = []
-        self._excluded: list[tuple] = []
+        # goals so far (in the order they were chosen: one ok answer per goal) and those reported
+        # unreachable. Not sent once an answer did not name its target.
         self._targets: dict[int, tuple] = {}  # goal stamp -> its target
+        self._excluded: list[tuple] = []
+        self._history_known = True
 
     @property
     def finished(self) -> bool:
@@ -224,7 +225,7 @@ class ExplorationCycle:
     def _new_request(self, min_map_stamp_ns: int) -> None:
         request_id = max(int(self._next_id()), self._last_id + 1)
         self._last_id = request_id
-        history = (None, None) if self._visited is None else (tuple(self._visited), tuple(self._excluded))
+        history = (tuple(self._targets.values()), tuple(self._excluded)) if self._history_known else (None, None)
         self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history)
         self.goal_stamp_ns, self.report = None, None
         self._enter(Phase.PLANNING)
@@ -254,14 +255,12 @@ class ExplorationCycle:
         except ValueError:
             target = None
         if target is None:
-            if self._visited is not None:
+            if self._history_known:
                 self.log.warning(f"planner answer {answer.request_id} does not name its target: requests carry "
                                  "no history from now on (a restarted planner may then repeat earlier targets)")
-            self._visited = None
+            self._history_known = False
             return
         self._targets[answer.goal_stamp_ns] = target
-        if self._visited is not None:
-            self._visited.append(target)
 
     def _enter(self, phase: Phase) -> None:
         self.phase = phase
