@@ -184,11 +184,45 @@ def test_unreachable_goals_ask_for_a_new_plan_on_the_same_map_until_the_limit():
 
 
 def test_an_aborted_touch_is_reissued_and_its_travel_counted():
-    r = Rig()
+    r = Rig(abort_backoff_s=0.0)
     r.cycle.on_tip(START)
     r.answer()
     r.report(TouchOutcome.ABORTED)
     assert len(r.sent) == 2 and r.run.travel == [0.1] and not r.cycle.finished
+
+
+def test_aborted_touches_are_reissued_after_a_doubling_back_off_so_a_stall_does_not_use_every_retry():
+    """Seen on the graph: a rig stalled 2.5 s after the commander's restart, the commander aborted the path
+    (stale joint states) and the three re-issues, sent at once, were refused within 0.1 s: the run ended.
+    With the back-off the re-issues are 2, 4 and 8 s apart and a stall shorter than that is ridden out."""
+    r = Rig(abort_backoff_s=2.0, max_retries=3)
+    r.cycle.on_tip(START)
+    r.answer()
+    for k, wait_s in enumerate((2.0, 4.0, 8.0)):
+        r.report(TouchOutcome.ABORTED)
+        assert len(r.sent) == k + 1 and r.cycle.phase is Phase.BACKING_OFF
+        r.answer(r.sent[-1])  # a late answer to the aborted goal's request changes nothing
+        r.advance(wait_s - 0.01)
+        assert len(r.sent) == k + 1 and r.cycle.phase is Phase.BACKING_OFF
+        r.advance(0.02)
+        assert len(r.sent) == k + 2 and r.cycle.phase is Phase.PLANNING
+        assert r.sent[-1].request_id > r.sent[-2].request_id and r.sent[-1].start_xyz_m is None
+        r.answer()
+    r.report(TouchOutcome.ABORTED)  # the fourth abort in a row: the run ends, with the reason
+    assert r.cycle.finished and r.cycle.exit_status == 1 and "gave up after 3 retries" in r.cycle.reason
+
+
+def test_a_touch_that_succeeds_after_an_abort_resets_the_back_off():
+    r = Rig(touches=5, abort_backoff_s=2.0)
+    r.cycle.on_tip(START)
+    r.answer()
+    r.report(TouchOutcome.ABORTED)
+    r.advance(2.01)
+    r.touch(7)
+    assert len(r.run.touches) == 1
+    r.report(TouchOutcome.ABORTED)  # a new abort waits the first back-off again, not the doubled one
+    r.advance(2.01)
+    assert r.cycle.phase is Phase.PLANNING
 
 
 def test_the_tip_never_at_the_start_says_where_it_is():
@@ -231,6 +265,7 @@ def test_each_request_names_the_nominal_start_of_its_touch():
     assert r.sent[-1].start_xyz_m == (0.4, 0.1, 0.06)
     r.answer()
     r.report(TouchOutcome.ABORTED)  # stopped somewhere: the planner uses the measured pose
+    r.advance(CycleConfig().abort_backoff_s)  # re-issued after the back-off
     assert r.sent[-1].start_xyz_m is None
 
 
@@ -251,6 +286,7 @@ def test_every_request_carries_the_targets_so_far_and_those_reported_unreachable
     assert r.sent[-1] == r.sent[-2]
     r.answer(target=c)
     r.report(TouchOutcome.ABORTED)  # re-issued: the aborted goal's target is a target chosen so far
+    r.advance(CycleConfig().abort_backoff_s)
     assert r.sent[-1].visited_xyz_m == (a, b, c) and r.sent[-1].excluded_xyz_m == (b,)
     # through the request's key/values, bit for bit
     assert PlanRequest.from_values(r.sent[-1].values()) == r.sent[-1]

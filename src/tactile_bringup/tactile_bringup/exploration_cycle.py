@@ -2,6 +2,7 @@
 
     WAITING_FOR_START --tip at start--> PLANNING(request) --answer ok--> TOUCHING(goal)
     TOUCHING --report + observation--> record --> PLANNING(next) | FINISHED
+    TOUCHING --aborted--> BACKING_OFF --abort_backoff_s--> PLANNING(the touch again)
 
 Delivery (docs/architecture.md, "Delivery"): events can arrive late, twice or
 (if a node died) never. Every request has an id (:class:`PlanRequest`); the
@@ -16,7 +17,12 @@ is waited for forever:
 - no report of the touch within ``touch_timeout_s``, an ``aborted`` touch, or
   a report whose observation does not arrive within
   ``observation_timeout_s``: the touch is re-issued under a new id (a
-  restarted commander ignores goals older than itself);
+  restarted commander ignores goals older than itself); an ``aborted``
+  touch (the commander refused or stopped it: stale joint states, e-stop) is
+  re-issued only after a back-off of ``abort_backoff_s``, doubled for each
+  abort in a row (2, 4, 8 s by default), so that a cause that lasts a few
+  seconds (a rig that stalls, a node restarting) does not use up every retry
+  at once;
 - ``unreachable``: a new request (the planner excludes that target);
 - a planner that died and was restarted: every request carries the run's
   history (the targets chosen so far and those reported unreachable, from
@@ -48,6 +54,7 @@ class Phase(enum.Enum):
     WAITING_FOR_START = "waiting_for_start"
     PLANNING = "planning"
     TOUCHING = "touching"
+    BACKING_OFF = "backing_off"  # an aborted touch, re-issued when the back-off ends
     FINISHED = "finished"
 
 
@@ -59,6 +66,7 @@ class CycleConfig:
     touch_timeout_s: float = 60.0  # no end of a touch: re-issue it
     observation_timeout_s: float = 10.0  # a report whose observation does not arrive: re-issue
     max_retries: int = 3  # re-sends / re-issues in a row before the run ends
+    abort_backoff_s: float = 2.0  # an aborted touch is re-issued after this, doubled per abort in a row (0: at once)
     max_unreachable: int = 10  # unreachable goals in a row before the run ends
 
 
@@ -92,11 +100,13 @@ class ExplorationCycle:
         self.plan_from_xyz: Optional[tuple] = tuple(map(float, self.start_xyz_m))  # nominal start of the next touch
         self.retries = 0
         self.unreachable_in_row = 0
+        self.aborts_in_row = 0
         self.n_requests_sent = 0
         self.written: list[str] = []  # what run.write produced when the run ended
         self._last_id = -1
         self._t_phase = clock_s()
         self._t_sent = self._t_phase
+        self._reissue_at_s = 0.0  # BACKING_OFF: when the aborted touch is re-issued
         self._goals: dict[int, Any] = {}
         self._paths: dict[int, np.ndarray] = {}
         self._decision_ms: dict[int, float] = {}
@@ -165,7 +175,8 @@ class ExplorationCycle:
         if report.outcome is TouchOutcome.ABORTED:
             self.run.add_travel(report.travel_m, report.duration_s)
             self.plan_from_xyz = None  # the arm stopped somewhere: plan from its measured pose
-            self._retry(f"touch aborted: {report.reason}", resend=False)
+            self.aborts_in_row += 1
+            self._retry(f"touch aborted: {report.reason}", resend=False, backoff=True)
             return
         self.report = report
         self.plan_from_xyz = report.end_xyz_m
@@ -177,6 +188,8 @@ class ExplorationCycle:
         waited = self._clock_s() - self._t_phase
         if self.phase is Phase.WAITING_FOR_START and waited > self.cfg.start_timeout_s:
             self._finish(self._start_failure(), exit_status=1)
+        elif self.phase is Phase.BACKING_OFF and self._clock_s() >= self._reissue_at_s:
+            self._new_request(self.last_obs_stamp_ns)
         elif self.phase is Phase.PLANNING and self._clock_s() - self._t_sent > self.cfg.answer_timeout_s:
             self._retry(f"no answer to request {self.request.request_id} within {self.cfg.answer_timeout_s:.0f} s",
                         resend=True)
@@ -208,7 +221,7 @@ class ExplorationCycle:
             self._observations[obs_ns] = slide.observations[-1]
             extra["slide"] = slide
         self.report = None
-        self.retries = self.unreachable_in_row = 0
+        self.retries = self.unreachable_in_row = self.aborts_in_row = 0
         record = self.run.add_touch(goal=self._goals.pop(report.goal_stamp_ns, None),
                                     observation=self._observations.pop(obs_ns), travel_m=report.travel_m,
                                     time_s=report.duration_s,
@@ -236,15 +249,21 @@ class ExplorationCycle:
         self.n_requests_sent += 1
         self._send(self.request)
 
-    def _retry(self, why: str, resend: bool) -> None:
+    def _retry(self, why: str, resend: bool, backoff: bool = False) -> None:
         self.retries += 1
         if self.retries > self.cfg.max_retries:
             self._finish(f"{why}; gave up after {self.cfg.max_retries} retries", exit_status=1)
             return
+        wait_s = self.cfg.abort_backoff_s * 2.0 ** (self.aborts_in_row - 1) if backoff else 0.0
         if resend:
             self.log.warning(f"{why}: sending request {self.request.request_id} again "
                              f"({self.retries}/{self.cfg.max_retries})")
             self._publish()
+        elif wait_s > 0:
+            self.log.warning(f"{why}: re-issuing the touch in {wait_s:.0f} s ({self.retries}/{self.cfg.max_retries})")
+            self.request, self.goal_stamp_ns, self.report = None, None, None
+            self._reissue_at_s = self._clock_s() + wait_s
+            self._enter(Phase.BACKING_OFF)
         else:
             self.log.warning(f"{why}: re-issuing the touch ({self.retries}/{self.cfg.max_retries})")
             self._new_request(self.last_obs_stamp_ns)

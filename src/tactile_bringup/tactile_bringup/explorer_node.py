@@ -57,6 +57,8 @@ PARAMS = {
     "touch_timeout_s": (60.0, "a touch that does not end: re-issue it under a new id (wall clock)", {"gt": 0.0}),
     "observation_timeout_s": (10.0, "a touch whose observation does not arrive: re-issue it (wall clock)", {"gt": 0.0}),
     "max_retries": (3, "re-sent requests / re-issued touches in a row before the run ends", {"ge": 0}),
+    "abort_backoff_s": (2.0, "an aborted touch (stale joint states, e-stop) is re-issued after this, doubled for "
+                        "each abort in a row; 0 = at once (wall clock)", {"ge": 0.0}),
     "max_unreachable": (10, "stop after this many unreachable goals in a row", {"ge": 1}),
     "resume_from": ("", "continue a run: its resume bundle (explore.sh --resume, tactile_bringup.resume); "
                     "'' = a new run"),
