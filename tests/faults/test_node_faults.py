@@ -61,20 +61,11 @@ def _rosbags_topics(path: Path) -> dict:
     return counts
 
 
-# Killing a node that subscribes to the rig's 100 Hz streams can freeze the rig itself: Fast DDS 2.14's
-# shared-memory transport then blocks forever in publish() on the dead reader's port lock (seen with
-# arm_commander: sim_rig stuck in SharedMemManager::Port::regenerate_port). Neither
-# FASTDDS_BUILTIN_TRANSPORTS nor an XML profile turns shared memory off under
-# ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; until it is, those cases run on request only.
-SHM_HANG = pytest.mark.skipif(os.environ.get("TACTILE_RUN_SHM_FAULTS") != "1",
-                              reason="kill -9 can hang Fast DDS shared memory (docs/reliability.md); "
-                                     "TACTILE_RUN_SHM_FAULTS=1 runs it")
-
-
-@pytest.mark.parametrize("victim", ["gpis_estimator", "soc_planner",
-                                    pytest.param("arm_commander", marks=SHM_HANG),
-                                    pytest.param("tactile_sensor", marks=SHM_HANG),
-                                    pytest.param("recorder", marks=SHM_HANG)])
+# Killing a node that subscribes to the rig's 100 Hz streams can stall the rig: Fast DDS 2.14's
+# shared-memory transport recovers a dead reader's port slowly (upstream eProsima/Fast-DDS#5469; one such
+# stall of 2.5 s after the commander's restart made it abort a path on stale joint states). Those cases
+# run in CI since aborted touches are re-issued after a back-off (docs/reliability.md: 16 runs, one stall).
+@pytest.mark.parametrize("victim", ["gpis_estimator", "soc_planner", "arm_commander", "tactile_sensor", "recorder"])
 def test_a_node_killed_mid_run_is_restarted_and_the_run_completes(domain_env, tmp_path, victim):
     out, touches = tmp_path / "run", 8
     env = dict(domain_env, TACTILE_MAX_RESTARTS="2")
@@ -96,10 +87,12 @@ def test_a_node_killed_mid_run_is_restarted_and_the_run_completes(domain_env, tm
     assert len(report["touches"]) == touches and report["summary"]["stopped_because"] == "touch budget"
     ious = [t["iou"] for t in report["touches"]]
     assert ious[-1] > ious[2], ious  # the estimate kept learning after the crash
-    if victim in ("gpis_estimator", "soc_planner"):
+    if victim in ("gpis_estimator", "soc_planner", "recorder"):
         # Nothing of the run was lost with the node: the restarted estimator re-reads the durable contacts,
-        # the restarted planner is told the run's history by each request. So the run makes the touches of
-        # an uninterrupted one (the offline loop of the same seed): same outcomes, targets, observations.
+        # the restarted planner is told the run's history by each request, the recorder takes no part. So the
+        # run makes the touches of an uninterrupted one (the offline loop of the same seed): same outcomes and
+        # targets. (A restarted commander re-plans the re-issued touch from where its start-up move left the
+        # arm, and a restarted driver may miss a contact: those runs only have to complete and keep learning.)
         offline = ExplorationLoop(Experiment(mode="2d", touches=touches, seed=3)).run()["touches"]
         assert [t["outcome"] for t in report["touches"]] == [t["outcome"] for t in offline]
         target_gaps_mm = [1e3 * float(np.linalg.norm(np.subtract(a["target"], b["target"])))
