@@ -50,3 +50,34 @@ def test_reports_kept_are_bounded():
     for s in range(10):
         box.finished(TouchReport(s, TouchOutcome.FREE_SPACE, "", s, 0.0, 0.0))
     assert len(box._reports) == 3
+
+
+def test_after_a_restart_the_newest_goal_from_before_it_is_reported_aborted_once():
+    """The touch under way when the commander died: reported at once so that the explorer re-issues it
+    (it would otherwise wait its touch_timeout_s); older goals of the handed-over history are not reported."""
+    box = GoalInbox(STARTED)
+    assert box.orphan() is None  # nothing handed over: nothing to report
+    for stamp in (3, 5, 4):  # the durable history, in any order
+        box.add_path(stamp, "p")
+        assert box.add_goal(stamp, "g", sent_ns=STARTED - 10 + stamp).verdict is Verdict.IGNORE
+    report = box.orphan()
+    assert report.goal_stamp_ns == 5 and report.outcome is TouchOutcome.ABORTED and "restarted" in report.reason
+    assert report.observation_stamp_ns is None and report.travel_m == 0.0
+    assert box.orphan() is None  # once
+    box.finished(report)
+    box.add_goal(5, "g", sent_ns=STARTED - 5)  # handed over again: its report is sent again, nothing moves
+    assert box.add_path(5, "p").verdict is Verdict.RESEND_REPORT
+
+
+def test_no_orphan_is_reported_once_a_newer_goal_runs_or_for_a_touch_finished_here():
+    box = GoalInbox(STARTED)
+    box.add_path(5, "p")
+    box.add_goal(5, "g", sent_ns=STARTED - 1)
+    box.add_path(6, "p")
+    assert box.add_goal(6, "g", sent_ns=STARTED + 1).verdict is Verdict.RUN  # the explorer re-issued already
+    assert box.orphan() is None
+    box2 = GoalInbox(STARTED)
+    box2.finished(TouchReport(7, TouchOutcome.CONTACT, "", 9, 0.1, 1.0))
+    box2.add_path(7, "p")
+    box2.add_goal(7, "g", sent_ns=STARTED - 1)
+    assert box2.orphan() is None

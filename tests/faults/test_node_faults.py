@@ -87,6 +87,9 @@ def test_a_node_killed_mid_run_is_restarted_and_the_run_completes(domain_env, tm
     assert len(report["touches"]) == touches and report["summary"]["stopped_because"] == "touch budget"
     ious = [t["iou"] for t in report["touches"]]
     assert ious[-1] > ious[2], ious  # the estimate kept learning after the crash
+    if victim == "arm_commander":  # the restarted commander reports the touch it did not take: re-issued at once
+        explorer_log = (out / "logs" / "explorer.log").read_text()
+        assert "the commander restarted" in explorer_log and "did not end within" not in explorer_log, explorer_log
     if victim in ("gpis_estimator", "soc_planner", "recorder"):
         # Nothing of the run was lost with the node: the restarted estimator re-reads the durable contacts,
         # the restarted planner is told the run's history by each request, the recorder takes no part. So the

@@ -17,7 +17,8 @@ is waited for forever:
 - no report of the touch within ``touch_timeout_s``, an ``aborted`` touch, or
   a report whose observation does not arrive within
   ``observation_timeout_s``: the touch is re-issued under a new id (a
-  restarted commander ignores goals older than itself); an ``aborted``
+  restarted commander does not run goals older than itself, and reports
+  the newest of them ``aborted``); an ``aborted``
   touch (the commander refused or stopped it: stale joint states, e-stop) is
   re-issued only after a back-off of ``abort_backoff_s``, doubled for each
   abort in a row (2, 4, 8 s by default), so that a cause that lasts a few
@@ -260,7 +261,7 @@ class ExplorationCycle:
                              f"({self.retries}/{self.cfg.max_retries})")
             self._publish()
         elif wait_s > 0:
-            self.log.warning(f"{why}: re-issuing the touch in {wait_s:.0f} s ({self.retries}/{self.cfg.max_retries})")
+            self.log.warning(f"{why}: re-issuing the touch in {wait_s:g} s ({self.retries}/{self.cfg.max_retries})")
             self.request, self.goal_stamp_ns, self.report = None, None, None
             self._reissue_at_s = self._clock_s() + wait_s
             self._enter(Phase.BACKING_OFF)

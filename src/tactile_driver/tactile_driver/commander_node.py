@@ -156,6 +156,8 @@ class ArmCommanderNode(Node):
         if self.startup is not None and not self.startup.done:
             self.startup.update()
             self.touches.hold = not self.startup.done  # queued touches go ahead, wherever the tip ended
+        elif (orphan := self.inbox.orphan()) is not None:  # after a restart: the touch that was under way
+            self._publish_done(orphan)
         self.touches.update()
 
     def _on_goal(self, msg: PoseStamped, info: dict) -> None:  # info: rclpy's message info (send time)

@@ -12,7 +12,12 @@ restarts itself. The rules, in order:
 2. the pair being run or waiting: nothing;
 3. a pair whose goal was published before this commander started (history
    handed over after a restart): nothing — the arm holds still until the
-   explorer re-issues the touch under a new id;
+   explorer re-issues the touch under a new id. The newest such pair may be
+   the touch the explorer is waiting for: :meth:`GoalInbox.orphan` reports
+   it ``aborted`` once (the node asks when its start-up move is done), so the
+   explorer re-issues it at once rather than after its ``touch_timeout_s``.
+   If that touch had finished before the restart, the explorer and the
+   re-analysis keep the first report of a goal and ignore this one;
 4. a pair older than the newest one accepted: superseded, nothing;
 5. otherwise: run it.
 
@@ -27,7 +32,7 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Optional
 
-from tactile_common.cycle import TouchReport
+from tactile_common.cycle import TouchOutcome, TouchReport
 
 
 class Verdict(enum.Enum):
@@ -57,6 +62,8 @@ class GoalInbox:
         self._reports: OrderedDict[int, TouchReport] = OrderedDict()  # finished touches, newest last
         self._accepted: set[int] = set()  # run or running, not yet finished
         self.newest_accepted_ns = -1
+        self.newest_old_ns = -1  # the newest pair published before this commander started
+        self._orphan_reported_ns = -1
 
     def add_goal(self, stamp_ns: int, goal: Any, sent_ns: int) -> Optional[Decision]:
         self._goals[int(stamp_ns)] = (goal, int(sent_ns))
@@ -73,6 +80,16 @@ class GoalInbox:
         while len(self._reports) > self.keep:
             self._reports.popitem(last=False)
 
+    def orphan(self) -> Optional[TouchReport]:
+        """The newest pair from before this commander started, as an ``aborted`` report, once; None when
+        there is none, it was reported, it finished here, or a newer goal has been accepted since."""
+        stamp = self.newest_old_ns
+        if stamp <= self._orphan_reported_ns or stamp <= self.newest_accepted_ns or stamp in self._reports:
+            return None
+        self._orphan_reported_ns = stamp
+        return TouchReport(stamp, TouchOutcome.ABORTED, "the commander restarted: a goal published before it "
+                           "started is not run", None, 0.0, 0.0)
+
     def _pair(self, stamp_ns: int) -> Optional[Decision]:
         if stamp_ns not in self._goals or stamp_ns not in self._paths:
             return None  # the other half is on its way
@@ -86,8 +103,9 @@ class GoalInbox:
         if stamp_ns in self._accepted:
             return Decision(Verdict.IGNORE, stamp_ns, reason="already running or queued")
         if sent_ns < self.started_ns:
+            self.newest_old_ns = max(self.newest_old_ns, stamp_ns)
             return Decision(Verdict.IGNORE, stamp_ns, reason="published before this commander started "
-                            "(waiting for the explorer to re-issue the touch)")
+                            "(the newest is reported aborted after the start-up move)")
         if stamp_ns < self.newest_accepted_ns:
             return Decision(Verdict.IGNORE, stamp_ns, reason="superseded by a newer goal")
         self._accepted.add(stamp_ns)
