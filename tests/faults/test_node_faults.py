@@ -130,3 +130,45 @@ def test_nodes_that_start_late_still_get_every_one_off_message(domain_env, tmp_p
     assert len(report["touches"]) == 4 and report["summary"]["stopped_because"] == "touch budget"
     counts = _rosbags_topics(out / "run.mcap")
     assert counts["/planner/request"] >= 4 and counts["/arm/touch_done"] >= 4, counts
+
+
+def _contact_points(path: Path) -> np.ndarray:
+    """(N, 3) x, y, z of every label-1 point on /tactile/contacts (rosbags message, decoded with numpy here)."""
+    from rosbags.highlevel import AnyReader
+
+    rows = []
+    with AnyReader([path]) as reader:
+        for conn, _, raw in reader.messages([c for c in reader.connections if c.topic == "/tactile/contacts"]):
+            msg = reader.deserialize(raw, conn.msgtype)
+            offsets = {f.name: f.offset for f in msg.fields}
+            data = np.frombuffer(bytes(msg.data), np.uint8).reshape(-1, msg.point_step)
+            xyz = np.column_stack([data[:, offsets[k]:offsets[k] + 8].copy().view("<f8")[:, 0] for k in "xyz"])
+            rows.append(xyz[data[:, offsets["label"]] == 1])
+    return np.vstack(rows) if rows else np.zeros((0, 3))
+
+
+def test_a_recorder_whose_disk_fills_mid_run_is_restarted_into_the_next_file_and_nothing_is_lost(domain_env,
+                                                                                                 tmp_path):
+    """The first recorder may write 1.5 MiB (``ulimit -f``, as a full disk: writes fail with EFBIG), a few
+    touches into the run. It stops with one line and status 1; scripts/explore.sh restarts it into run.1.mcap
+    (the durable topics hand it every contact so far) and recovers the cut run.mcap after the run."""
+    out, touches = tmp_path / "run", 6
+    env = dict(domain_env, TACTILE_MAX_RESTARTS="2", TACTILE_RECORDER_FILE_LIMIT_KIB="1536")
+    result = subprocess.run(["bash", str(ROOT / "scripts/explore.sh"), "--out", str(out), "--touches", str(touches),
+                             "--seed", "3"], env=env, capture_output=True, text=True, timeout=420,
+                            stdin=subprocess.DEVNULL)
+    said = result.stdout + result.stderr
+    assert result.returncode == 0, said[-3000:] + _logs(out)
+    assert "recorder died (status 1): restarting it (1/2)" in said and "recovered" in said, said[-3000:]
+    assert "File too large" in (out / "logs" / "recorder.log").read_text()
+    report = json.loads((out / "report.json").read_text())
+    assert len(report["touches"]) == touches and report["summary"]["stopped_because"] == "touch budget"
+    cut, restarted = out / "run.mcap", out / "run.1.mcap"
+    assert cut.stat().st_size <= 1536 * 1024 and restarted.stat().st_size > 0
+    # both files read whole with an independent reader, and together they hold every touch's contact
+    recorded = np.vstack([_contact_points(cut), _contact_points(restarted)])
+    assert len(_contact_points(cut)) > 0, "the disk filled before the first contact: raise the limit"
+    for t in report["touches"]:
+        if t["outcome"] == "contact":
+            gap_m = np.min(np.linalg.norm(recorded - np.asarray(t["contact"]), axis=1))
+            assert gap_m < 1e-6, (t["index"], gap_m)  # the report rounds to 0.1 µm
