@@ -139,13 +139,11 @@ launch() {  # launch INDEX: (re)start node names[INDEX] in the background, appen
     printf 'recorder:\n  ros__parameters:\n    output: "%s"\n' "$run_dir/$rec_base.${restarts[$i]}.mcap" > "$part"
     extra=(--params-file "$part")
   fi
-  if [ "$name" = recorder ] && [ "${restarts[$i]}" = 0 ] && [ -n "${TACTILE_RECORDER_FILE_LIMIT_KIB:-}" ]; then
-    # fault injection (tests): the first recorder's disk is full at this size (writes past it fail, EFBIG)
-    ( ulimit -f "$TACTILE_RECORDER_FILE_LIMIT_KIB"; exec "$name" --ros-args "${params_args[@]}" ) \
-      >> "$log_dir/$name.log" 2>&1 &
-  else
-    "$name" --ros-args "${params_args[@]}" "${extra[@]}" >> "$log_dir/$name.log" 2>&1 &
-  fi
+  local file_limit_kib=""  # fault injection (tests): the first recorder's disk is full at this size (EFBIG)
+  [ "$name" = recorder ] && [ "${restarts[$i]}" = 0 ] && file_limit_kib="${TACTILE_RECORDER_FILE_LIMIT_KIB:-}"
+  # exec: the subshell becomes the node (same pid)
+  ( [ -z "$file_limit_kib" ] || ulimit -f "$file_limit_kib"; exec "$name" --ros-args "${params_args[@]}" "${extra[@]}" ) \
+    >> "$log_dir/$name.log" 2>&1 &
   pids[$i]=$!
 }
 late_nodes=" ${TACTILE_LATE_NODES:-} " deferred=()  # fault injection (tests): start these nodes late

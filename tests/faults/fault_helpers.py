@@ -142,3 +142,11 @@ def pose_msg(xyz, frame_id: str = "world", stamp=None, q_xyzw=(0.0, 0.0, 0.0, 1.
     o = msg.pose.orientation
     o.x, o.y, o.z, o.w = (float(v) for v in q_xyzw)
     return msg
+
+
+def contact_rows(msg) -> np.ndarray:
+    """(N, 4) x, y, z, label of a recorded CONTACT_DTYPE cloud (a rosbags message, decoded with numpy here)."""
+    offsets = {f.name: f.offset for f in msg.fields}
+    raw = np.frombuffer(bytes(msg.data), np.uint8).reshape(-1, msg.point_step)
+    cols = [raw[:, offsets[k]:offsets[k] + 8].copy().view("<f8")[:, 0] for k in ("x", "y", "z")]
+    return np.column_stack(cols + [raw[:, offsets["label"]].astype(float)])

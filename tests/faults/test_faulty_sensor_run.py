@@ -17,7 +17,7 @@ import pytest
 
 from tactile_sim.objects import make_object
 
-from fault_helpers import commander_monitor
+from fault_helpers import commander_monitor, contact_rows
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
@@ -41,14 +41,6 @@ def _read(path: Path):
     with AnyReader([path]) as reader:
         for conn, log_ns, raw in reader.messages():
             yield conn.topic, reader.deserialize(raw, conn.msgtype), log_ns
-
-
-def _contacts(msg) -> np.ndarray:
-    """(N, 4) x, y, z, label of a recorded CONTACT_DTYPE cloud (rosbags message, decoded with numpy here)."""
-    offsets = {f.name: f.offset for f in msg.fields}
-    raw = np.frombuffer(bytes(msg.data), np.uint8).reshape(-1, msg.point_step)
-    cols = [raw[:, offsets[k]:offsets[k] + 8].copy().view("<f8")[:, 0] for k in ("x", "y", "z")]
-    return np.column_stack(cols + [raw[:, offsets["label"]].astype(float)])
 
 
 def test_a_run_with_sensor_faults_completes_with_true_contacts_and_safe_trajectories(domain_env, tmp_path):
@@ -83,7 +75,7 @@ def test_a_run_with_sensor_faults_completes_with_true_contacts_and_safe_trajecto
                     diag = {kv.key: kv.value for kv in s.values}
         elif topic == "/tactile/contacts":
             stamp_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
-            points.append(_contacts(msg))
+            points.append(contact_rows(msg))
             stamps += [stamp_ns] * len(points[-1])
         elif topic == "/arm/touch_done" and msg.message == "contact":
             used.add(int({kv.key: kv.value for kv in msg.values}["observation_stamp_ns"]))

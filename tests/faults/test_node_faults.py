@@ -20,6 +20,8 @@ from tactile_bringup.experiment import Experiment
 from tactile_bringup.loop import ExplorationLoop
 from tactile_bringup.report import check_report
 
+from fault_helpers import contact_rows
+
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.graph, pytest.mark.slow]
 
@@ -133,18 +135,15 @@ def test_nodes_that_start_late_still_get_every_one_off_message(domain_env, tmp_p
 
 
 def _contact_points(path: Path) -> np.ndarray:
-    """(N, 3) x, y, z of every label-1 point on /tactile/contacts (rosbags message, decoded with numpy here)."""
+    """(N, 3) x, y, z of every label-1 point on /tactile/contacts of a recording (read with rosbags)."""
     from rosbags.highlevel import AnyReader
 
-    rows = []
+    rows = [np.zeros((0, 4))]
     with AnyReader([path]) as reader:
         for conn, _, raw in reader.messages([c for c in reader.connections if c.topic == "/tactile/contacts"]):
-            msg = reader.deserialize(raw, conn.msgtype)
-            offsets = {f.name: f.offset for f in msg.fields}
-            data = np.frombuffer(bytes(msg.data), np.uint8).reshape(-1, msg.point_step)
-            xyz = np.column_stack([data[:, offsets[k]:offsets[k] + 8].copy().view("<f8")[:, 0] for k in "xyz"])
-            rows.append(xyz[data[:, offsets["label"]] == 1])
-    return np.vstack(rows) if rows else np.zeros((0, 3))
+            rows.append(contact_rows(reader.deserialize(raw, conn.msgtype)))
+    points = np.vstack(rows)
+    return points[points[:, 3] == 1, :3]
 
 
 def test_a_recorder_whose_disk_fills_mid_run_is_restarted_into_the_next_file_and_nothing_is_lost(domain_env,
