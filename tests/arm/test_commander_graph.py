@@ -199,3 +199,45 @@ def test_an_approach_stops_when_the_sensor_falls_silent_and_is_repeated_once_it_
     for k in range(4, len(trajs) - 1, 3):
         assert not trajs[k - 2].points  # a stop before each retract
         np.testing.assert_array_equal(np.array([p.positions for p in trajs[k].points]), approach)  # the same motion
+
+
+def test_the_commander_reports_acting_on_contacts_only_once_the_contacts_the_driver_sent_are_here(ros_graph):
+    """/arm/acted_through (what the simulated rig's clock waits for) follows the driver's
+    /tactile/decided_through while every contact it announced has arrived, and stops at the last
+    such stamp while one is on its way; the contact's arrival lets it go on."""
+    g = ros_graph
+    acted = g.collect(topics.ARM_ACTED, DiagnosticStatus, qos.SENSOR)
+    clock = g.collect(topics.CLOCK, Clock, qos.CLOCK)
+    g.start("sim", SIM)
+    g.start("arm", ARM + NO_START)
+    decided_pub = g.node.create_publisher(DiagnosticStatus, topics.SENSOR_DECIDED, qos.SENSOR)
+    contact_pub = g.node.create_publisher(PointCloud2, topics.CONTACTS, qos.OBSERVATIONS)
+    sent = [0]
+    published_ns = []
+
+    def play_driver():
+        if clock:
+            ns = stamps.stamp_ns(clock[-1].clock)
+            if not published_ns or ns > published_ns[-1]:
+                published_ns.append(ns)
+                decided_pub.publish(DiagnosticStatus(name="tactile_sensor", message="decided", values=[
+                    KeyValue(key="decided_through_ns", value=str(ns)), KeyValue(key="contacts_sent", value=str(sent[0]))]))
+
+    g.node.create_timer(0.01, play_driver)
+
+    def acted_ns():
+        return [int(done_values(m)["acted_through_ns"]) for m in acted]
+
+    g.wait_for(lambda: len(acted) > 5, 30, "the commander's acted_through")
+    assert set(acted_ns()) <= set(published_ns) and acted_ns() == sorted(acted_ns())
+    # The driver announces a contact that has not arrived: acted_through stays before it.
+    sent[0], n_before = 1, len(published_ns)
+    g.wait_for(lambda: len(published_ns) > n_before, 10, "progress")
+    first_held_ns = published_ns[n_before]  # the first one to announce the contact
+    g.wait_for(lambda: published_ns[-1] > first_held_ns + 500_000_000, 30, "0.5 s of progress with the contact missing")
+    assert max(acted_ns()) < first_held_ns, (max(acted_ns()), first_held_ns)
+    # The contact arrives (far from any motion: the commander is idle, it only counts it).
+    cloud = np.zeros(1, dtype=fields.CONTACT_DTYPE)
+    cloud["x"], cloud["y"], cloud["z"], cloud["label"] = 0.5, 0.0, 0.06, fields.LABEL_CONTACT
+    contact_pub.publish(to_pointcloud2(cloud, topics.WORLD_FRAME, stamps.time_from_ns(first_held_ns)))
+    g.wait_for(lambda: max(acted_ns()) > first_held_ns + 500_000_000, 30, "acted_through after the contact")

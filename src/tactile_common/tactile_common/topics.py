@@ -34,6 +34,9 @@ JOINT_STATES = "/joint_states"
 FINGERTIP_POSE = "/arm/fingertip_pose"
 ESTOP = "/arm/estop"
 TOUCH_DONE = "/arm/touch_done"
+# DiagnosticStatus: every frame up to a stamp judged by the driver and its contacts acted on (the simulated
+# rig's clock waits for it, so that a stop after a contact lands in time however loaded the machine).
+ARM_ACTED = "/arm/acted_through"
 
 # Simulation.
 CLOCK = "/clock"

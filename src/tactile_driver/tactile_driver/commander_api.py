@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState, PointCloud2
@@ -49,7 +49,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
-from tactile_common.stamps import stamp_s, time_from_ns
+from tactile_common.stamps import ns_from_s, stamp_s, time_from_ns
 from tactile_driver import arm_msgs
 from tactile_driver.contact import back_off_target
 from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
@@ -145,6 +145,7 @@ class ArmCommander:
         self.sensor_decided_s = -np.inf  # the driver has judged every frame up to this stamp...
         self.sensor_contacts_sent = 0  # ...having sent this many contacts by then
         self.contacts_received = 0  # contact clouds (label 1) received from the driver
+        self.acted_through_s = -np.inf  # every frame to here judged, its contacts acted on (published)
         self.tip_xyz: Optional[np.ndarray] = None
         self.odometer_m = 0.0  # tip path length over all measured states
         self.motion_time_s = 0.0  # time spent in motions (robot time, without timed-start waits)
@@ -166,6 +167,7 @@ class ArmCommander:
         self._pub_planned = node.create_publisher(JointTrajectory, c.planned_topic, qos.EVENTS)
         self._pub_pose = node.create_publisher(
             arm_msgs.PoseStamped, topics.FINGERTIP_POSE, qos.STATE) if c.publish_fingertip_pose else None
+        self._pub_acted = node.create_publisher(DiagnosticStatus, topics.ARM_ACTED, qos.SENSOR)
         node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state, qos.STATE)
         node.create_subscription(PointCloud2, topics.CONTACTS, self._on_contacts, qos.OBSERVATIONS)
         node.create_subscription(Bool, topics.ESTOP, self._on_estop, qos.LATCHED)
@@ -507,6 +509,10 @@ class ArmCommander:
         return points[points["label"] == fields.LABEL_CONTACT]
 
     def _on_contacts(self, msg: PointCloud2) -> None:
+        self._act_on_contacts(msg)
+        self._publish_acted()
+
+    def _act_on_contacts(self, msg: PointCloud2) -> None:
         hits = self._contact_points(msg, "contact cloud")
         if hits is None:
             return
@@ -562,6 +568,21 @@ class ArmCommander:
             return
         if decided_s >= self.sensor_decided_s:
             self.sensor_decided_s, self.sensor_contacts_sent = decided_s, sent
+        self._publish_acted()
+
+    def _publish_acted(self) -> None:
+        """Lock-step with the simulated rig: once every contact the driver sent with its frames judged
+        through ``sensor_decided_s`` is here (and a stop it called for published), say so on
+        /arm/acted_through. The rig's clock waits for it, so a stop lands within a few ticks of the
+        contact's frame however late this process runs (a real rig does not listen)."""
+        t = self.sensor_decided_s
+        if self.contacts_received < self.sensor_contacts_sent or not t > self.acted_through_s:
+            return
+        self.acted_through_s = t
+        if self.node.context.ok():  # not while shutting down
+            self._pub_acted.publish(DiagnosticStatus(
+                name="arm_commander", message="acted", hardware_id="arm_commander",
+                values=[KeyValue(key="acted_through_ns", value=str(ns_from_s(t)))]))
 
     def _on_estop(self, msg: Bool) -> None:
         if self.estop.set(msg.data):

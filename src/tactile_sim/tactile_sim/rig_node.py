@@ -7,16 +7,13 @@ forward kinematics and let the simulated sensor device write the frames due
 (on the pty behind ``sensor_link_path``). The arm is not stopped by the
 object: the commander's guarded approach must stop it.
 
-Lock-step: simulated time waits (a) for the driver to read the frames sent
-(``sensor_max_hold_s``) and (b) for the sensing loop to keep up: once the
-driver reports progress (/tactile/decided_through), the clock holds while
-its frames are judged more than ``sensor_max_lag_s`` behind simulated time
-(a frame waits for its fingertip pose, which goes rig → commander → driver),
-at most ``sensor_max_lag_hold_s`` (wall) at a time: then one tick goes
-through (joint states keep coming, so the commander's watchdog stays fed).
-On a loaded machine the simulation then slows down instead of running ahead
-of the sensing: an approach stops within a frame or two of its contact, and a
-slide's servo sees contacts a few milliseconds old, as on a real rig.
+Lock-step (:mod:`tactile_sim.clock_gate`): simulated time waits for the
+driver to read the frames sent and for the sensing loop (the driver's
+/tactile/decided_through, the commander's /arm/acted_through) to keep up, so
+on a loaded machine the simulation slows down instead of running ahead of the
+sensing: an approach stops within a few ticks of its contact's frame however
+late the commander runs, and a slide's servo sees contacts a few milliseconds
+old, as on a real rig.
 """
 
 from __future__ import annotations
@@ -36,6 +33,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.stamps import stamp_s, time_from_s
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS, ArmModel, KinematicsError, home_configuration
+from tactile_sim.clock_gate import ClockGate
 from tactile_sim.device_params import DEVICE_PARAMETERS, OBJECT_PARAMETERS
 from tactile_sim.controller import TrajectoryController, TrajectoryRejected
 from tactile_sim.sensor_device import motion_key
@@ -58,8 +56,9 @@ PARAMS = {
     "sensor_seed": (0, "seed of the sensor noise, baselines and faults", {"ge": 0}),
     "sensor_max_hold_s": (2.0, "lock-step: the clock waits for a driver that is behind reading frames, at most this "
                           "long in a row (wall clock); then frames are dropped", {"ge": 0.0}),
-    "sensor_max_lag_s": (0.03, "lock-step: the clock waits while the driver's judged frames (decided_through) are "
-                         "more than this behind simulated time (s; at most sensor_max_hold_s wall in a row; "
+    "sensor_max_lag_s": (0.03, "lock-step: the clock waits while the driver's judged frames (decided_through), or "
+                         "the frames whose contacts the commander acted on (acted_through), are more than this "
+                         "behind simulated time (s; at most sensor_max_hold_s wall in a row; "
                          "0 = off)", {"ge": 0.0}),
     "sensor_max_lag_hold_s": (0.25, "lock-step: the longest wait for the sensing loop (wall clock); then one tick "
                               "goes through (keep it below the commander's watchdog_timeout_s)", {"gt": 0.0}),
@@ -83,20 +82,14 @@ class SimRig(Node):
         self.dt_s = 1.0 / p.rate_hz
         self.t_s = 0.0
         self.device = self._make_device(p) if p.sensor_enabled else None
-        self.sensor_max_hold_s = float(p.sensor_max_hold_s)
-        self.sensor_max_lag_s = float(p.sensor_max_lag_s)
-        self.decided_s: float | None = None  # the driver's frames are judged up to this (sim) time
-        self.lag_held_ticks = 0  # ticks the clock waited for the sensing loop
-        self.sensor_max_lag_hold_s = float(p.sensor_max_lag_hold_s)
-        self._lag_held_since = None
-        self._held_since = None
-        self.held_ticks = 0  # ticks the clock waited for the driver
+        self.gate = ClockGate(p.sensor_max_hold_s, p.sensor_max_lag_s, p.sensor_max_lag_hold_s)
         self.late_starts = 0  # trajectories received after their start time
         self._pub_clock = self.create_publisher(ClockMsg, topics.CLOCK, qos.CLOCK)
         self._pub_js = self.create_publisher(JointState, topics.JOINT_STATES, qos.STATE)
         self.create_subscription(JointTrajectory, p.trajectory_topic, self._on_trajectory, qos.COMMANDS)
-        if self.device is not None and self.sensor_max_lag_s > 0:
+        if self.device is not None and self.gate.max_lag_s > 0:
             self.create_subscription(DiagnosticStatus, topics.SENSOR_DECIDED, self._on_decided, qos.SENSOR)
+            self.create_subscription(DiagnosticStatus, topics.ARM_ACTED, self._on_acted, qos.SENSOR)
         # The rig is the clock source: it ticks on the steady clock, whatever use_sim_time says.
         self.create_timer(self.dt_s / p.real_time_factor, self._tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         tip = self.model.fk(q0)[0]
@@ -150,8 +143,8 @@ class SimRig(Node):
     def _tick(self) -> None:
         if not self.context.ok():  # SIGINT arrived during this spin: publishing would raise
             return
-        if self._sensor_behind():
-            return  # lock-step: simulated time waits for the driver (no frame is dropped for load)
+        if self.device is not None and self.gate.hold(self.t_s, self.device.backlog_bytes, time.monotonic()):
+            return  # lock-step: simulated time waits for the sensing loop (no frame is dropped for load)
         self.t_s += self.dt_s
         stamp = time_from_s(self.t_s)
         self._pub_clock.publish(ClockMsg(clock=stamp))
@@ -164,47 +157,26 @@ class SimRig(Node):
             self.device.step(self.t_s)
 
     def _on_decided(self, msg: DiagnosticStatus) -> None:
-        values = {kv.key: kv.value for kv in msg.values}
-        try:
-            t = int(values["decided_through_ns"]) * 1e-9
-        except (KeyError, ValueError):
-            return
-        self.decided_s = t if self.decided_s is None else max(self.decided_s, t)
+        t = _progress_s(msg, "decided_through_ns")
+        if t is not None:
+            self.gate.on_decided(t)
 
-    def _lagging(self) -> bool:
-        """The sensing loop judged frames more than ``sensor_max_lag_s`` behind (module docstring)."""
-        return (self.sensor_max_lag_s > 0 and self.decided_s is not None
-                and self.t_s - self.decided_s > self.sensor_max_lag_s)
-
-    def _sensor_behind(self) -> bool:
-        """The driver has not read the frames sent so far, or the sensing loop lags: hold the clock,
-        for at most ``sensor_max_hold_s`` (wall) in a row, after which frames are dropped (counted by
-        the device) rather than stopping the simulation for a driver that is gone."""
-        if self.device is not None and self.device.backlog_bytes == 0 and self._lagging():
-            now = time.monotonic()
-            if self._lag_held_since is None:
-                self._lag_held_since = now
-            if now - self._lag_held_since <= self.sensor_max_lag_hold_s:
-                self.held_ticks += 1
-                self.lag_held_ticks += 1
-                return True
-            self._lag_held_since = None  # waited long enough: one tick goes through
-            return False
-        self._lag_held_since = None
-        if self.device is None or self.device.backlog_bytes == 0:
-            self._held_since = None
-            return False
-        now = time.monotonic()
-        if self._held_since is None:
-            self._held_since = now
-        if now - self._held_since > self.sensor_max_hold_s:
-            return False
-        self.held_ticks += 1
-        return True
+    def _on_acted(self, msg: DiagnosticStatus) -> None:
+        t = _progress_s(msg, "acted_through_ns")
+        if t is not None:
+            self.gate.on_acted(t)
 
     def close(self) -> None:
         if self.device is not None:
             self.device.close()
+
+
+def _progress_s(msg: DiagnosticStatus, key: str) -> float | None:
+    """The stamp (s) in a progress message's ``key`` (ns), None if it has none."""
+    try:
+        return int({kv.key: kv.value for kv in msg.values}[key]) * 1e-9
+    except (KeyError, ValueError):
+        return None
 
 
 def main(args=None) -> int:
