@@ -127,6 +127,7 @@ class FreeSpaceGraph:
 
 
 CLEARANCES = ("distance", "mean")
+_THREADED_QUERY_MIN = 32768  # lattice nodes from which the surface-distance query runs on every core
 
 
 def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray:
@@ -154,7 +155,9 @@ def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray
         return sign * max_m
     tree = cKDTree(np.concatenate(pts))
     grid = lattice.grid_xyz()[:, : lattice.dim]
-    d, _ = tree.query(grid, distance_upper_bound=max_m)
+    # Threads (each node's answer is the same on any number of cores) pay on the 3D lattice (48³:
+    # 83 -> 47 ms on 2 cores), not on a 2D one (128²: the same within noise).
+    d, _ = tree.query(grid, distance_upper_bound=max_m, workers=-1 if len(grid) >= _THREADED_QUERY_MIN else 1)
     return sign * np.minimum(d, max_m).reshape(mu.shape)
 
 

@@ -83,6 +83,32 @@ def _axis(values: np.ndarray, name: str) -> np.ndarray:
     return u
 
 
+def _in_c_order(p: np.ndarray, axes) -> bool:
+    """Every node (N, 3) at its place on the lattice of ``axes`` in C order (to 1e-9 m)."""
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return all(np.allclose(p[:, k], m.ravel(), rtol=0, atol=1e-9) for k, m in enumerate(mesh))
+
+
+def _c_order_axes(p: np.ndarray) -> list[np.ndarray] | None:
+    """The x, y, z axes of nodes (N, 3) that form a C-order lattice (x slowest, z fastest), read
+    off the rows in O(N) rather than sorted out; None when the rows are not one, or an axis is
+    not increasing and evenly spaced (the caller's sorted path then says what is wrong)."""
+    block, axes = 1, [None, None, None]
+    for k in (2, 1, 0):  # fastest first: an axis's values repeat after its length
+        seq = p[::block, k]
+        again = np.flatnonzero(seq[1:] == seq[0])
+        n = int(again[0]) + 1 if len(again) and k > 0 else len(seq)
+        axes[k], block = seq[:n].copy(), block * n
+    if block != len(p):
+        return None
+    for a in axes:
+        if len(a) >= 2:
+            steps = np.diff(a)
+            if not (steps[0] > 0 and np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9)):
+                return None
+    return axes if _in_c_order(p, axes) else None
+
+
 def parse_variance_map(map_array: np.ndarray) -> tuple[MapLattice, Candidates]:
     """Split a variance map into its lattice and its candidates.
 
@@ -106,7 +132,10 @@ def parse_variance_map(map_array: np.ndarray) -> tuple[MapLattice, Candidates]:
     p = xyz(lat)
     if not (np.isfinite(p).all() and np.isfinite(lat["mean"]).all() and np.isfinite(lat["variance"]).all()):
         raise MapError("lattice holds non-finite coordinates, mean or variance")
-    ax = [_axis(p[:, k], "xyz"[k]) for k in range(3)]
+    ax = _c_order_axes(p)
+    in_order = ax is not None
+    if not in_order:  # not a C-order lattice: find the axes by sorting, to say what is wrong
+        ax = [_axis(p[:, k], "xyz"[k]) for k in range(3)]
     if len(ax[2]) == 1:  # 2D: every node at the plane height
         axes, plane_z = (ax[0], ax[1]), float(ax[2][0])
     else:
@@ -116,10 +145,8 @@ def parse_variance_map(map_array: np.ndarray) -> tuple[MapLattice, Candidates]:
         raise MapError(f"lattice must have at least 2 nodes per axis, got shape {shape}")
     if int(np.prod(shape)) != n_lat:
         raise MapError(f"{n_lat} lattice nodes do not form a full lattice of shape {shape}")
-    mesh = np.meshgrid(*axes, indexing="ij")
-    for k, m in enumerate(mesh):
-        if not np.allclose(p[:, k], m.ravel(), rtol=0, atol=1e-9):
-            raise MapError("lattice nodes are not in C order (x slowest, then y, then z)")
+    if not in_order and not _in_c_order(p, axes):
+        raise MapError("lattice nodes are not in C order (x slowest, then y, then z)")
     lattice = MapLattice(
         axes=axes,
         mean_m=lat["mean"].astype(np.float64).reshape(shape),
