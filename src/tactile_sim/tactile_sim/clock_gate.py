@@ -2,8 +2,9 @@
 
 The rig's clock is the graph's time. On a loaded machine the processes that
 sense and react run late; if the clock ran on regardless, an approach would
-press on into the object while its contact is still on its way (a real arm
-at rest on a quiet machine does not). The clock therefore waits, per tick:
+press on into the object while its contact is still on its way, further than
+the offline loop (which stops at the contact's tick) or a rig on a quiet host.
+The clock therefore waits, per tick:
 
 1. **for the driver to read** the frames the device has written (a backlog on
    the serial link), at most ``max_hold_s`` wall in a row; then it runs on and
