@@ -29,6 +29,7 @@ pytestmark = pytest.mark.graph
 ROOT = FsPath(__file__).resolve().parents[2]
 CENTRE, RADIUS_M, Z_M = np.array([0.50, 0.0]), 0.04, 0.06
 STANDOFF_M, TIP_RADIUS_M = 0.01, 0.010
+WAYPOINT_STEP_M = 0.01  # arm_commander.yaml: the path's waypoints
 
 
 def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_miss(ros_graph, tmp_path):
@@ -106,13 +107,16 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     assert done[2].message == "contact" and "unexpected contact" in v3["reason"], v3
     assert from_pointcloud2(contacts[2])["label"][0] == fields.LABEL_CONTACT
     assert int(v3["observation_stamp_ns"]) == stamp_ns(contacts[2].header.stamp)
-    # Backed off along tip − contact to standoff_m from the contact point. At path speed the onset
-    # is detected a few mm deep, so only "clear of the surface, about standoff_m off" is asserted.
+    # Backed off along the path to its last waypoint at least standoff_m of travel before the contact
+    # (arm_motions.path_point_before): standoff_m to standoff_m + waypoint_step_m off (the path here
+    # runs along the normal). The skin senses the surface a fraction of a millimetre before the
+    # geometric contact, so the waypoint one step earlier (2 × 10 mm off) is as right as the next one;
+    # which one it is depended on the commander's delivery latency before the rig waited for it.
     def gap_m():  # tip surface to the circle, from the newest pose (poses may trail touch_done)
         last = poses[-1].pose.position
         return np.linalg.norm([last.x - CENTRE[0], last.y - CENTRE[1]]) - RADIUS_M - TIP_RADIUS_M
 
-    g.wait_for(lambda: 0.3 * STANDOFF_M < gap_m() < STANDOFF_M + 0.005, 10,
+    g.wait_for(lambda: 0.3 * STANDOFF_M < gap_m() < STANDOFF_M + WAYPOINT_STEP_M + 0.002, 10,
                "the tip about standoff_m off the surface after the back-off")
     print(f"gap after the back-off {gap_m() * 1e3:.1f} mm")
     # touched at path speed (5x the approach speed): the onset is detected deeper (not an accuracy test)
