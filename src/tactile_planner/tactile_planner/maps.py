@@ -74,12 +74,18 @@ class Candidates:
         return int(self.xyz.shape[0])
 
 
+def _evenly_spaced(axis: np.ndarray) -> bool:
+    """An axis of fewer than two values, or strictly increasing with equal steps (rtol 1e-6)."""
+    if len(axis) < 2:
+        return True
+    steps = np.diff(axis)
+    return bool(steps[0] > 0 and np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9))
+
+
 def _axis(values: np.ndarray, name: str) -> np.ndarray:
     u = np.unique(values)
-    if len(u) >= 2:
-        steps = np.diff(u)
-        if not np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9):
-            raise MapError(f"lattice {name} coordinates are not evenly spaced")
+    if not _evenly_spaced(u):
+        raise MapError(f"lattice {name} coordinates are not evenly spaced")
     return u
 
 
@@ -99,13 +105,8 @@ def _c_order_axes(p: np.ndarray) -> list[np.ndarray] | None:
         again = np.flatnonzero(seq[1:] == seq[0])
         n = int(again[0]) + 1 if len(again) and k > 0 else len(seq)
         axes[k], block = seq[:n].copy(), block * n
-    if block != len(p):
+    if block != len(p) or not all(_evenly_spaced(a) for a in axes):
         return None
-    for a in axes:
-        if len(a) >= 2:
-            steps = np.diff(a)
-            if not (steps[0] > 0 and np.allclose(steps, steps[0], rtol=1e-6, atol=1e-9)):
-                return None
     return axes if _in_c_order(p, axes) else None
 
 
