@@ -12,7 +12,7 @@ import pytest
 from tactile_common.touch_geometry import MotionModel
 from tactile_planner.maps import MapLattice, parse_variance_map
 from tactile_planner.planner import TouchPlanner
-from tactile_planner.slides import SlideParams, choose_slide, start_tangents, trace
+from tactile_planner.slides import SlideParams, choose_slide, start_directions, start_tangents, trace
 from tactile_planner.synthetic import sphere_map
 
 C = np.array([0.5, 0.0])
@@ -135,3 +135,27 @@ def test_planner_with_touch_slide_plans_a_tangent_slide():
     assert poke.ok and np.isnan(poke.slide_length_m)
     _, cands = parse_variance_map(m)
     assert res.index < len(cands)
+
+
+def test_3d_start_directions_span_the_tangent_plane():
+    n = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.6, 0.8]])  # a wall, a top, a slope
+    d = start_directions(n, 4)
+    assert d.shape == (3, 4, 3)
+    assert np.allclose(np.linalg.norm(d, axis=2), 1.0) and np.allclose(np.einsum("mkj,mj->mk", d, n), 0.0)
+    # the wall: along the horizontal band (z × n = +y) first, then up the surface (+z), then back, then down
+    assert np.allclose(d[0], [[0, 1, 0], [0, 0, 1], [0, -1, 0], [0, 0, -1]], atol=1e-12)
+    two = start_directions(n, 2)
+    assert np.allclose(two[:, 0], d[:, 0]) and np.allclose(two[:, 1], -d[:, 0])
+    assert np.allclose(two[[0, 2], 0], start_tangents(n[[0, 2]]))  # D = 2 is the band of before
+    assert np.allclose(d[2, 0], [-1, 0, 0]) and d[2, 1, 2] > 0  # the slope: horizontal, then uphill
+
+
+def test_a_3d_trace_stops_at_the_lowest_tip_height():
+    m = parse_variance_map(sphere_map(40, 3, radius_m=0.05))[0]
+    c = np.array([0.5, 0.0, 0.06])  # sphere_map's default centre
+    start = c + np.array([0.05, 0.0, 0.0])
+    down = np.array([[0.0, 0.0, -1.0]])
+    pts, _, ok = trace(m, start[None], down, 0.003, 30, min_z_m=0.03)
+    valid = np.cumprod(ok, axis=1).astype(bool)[0]
+    assert valid[:5].all() and not valid.all()
+    assert pts[0, valid, 2].min() >= 0.03 and pts[0, np.argmin(valid), 2] < 0.03

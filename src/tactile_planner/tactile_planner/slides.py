@@ -2,14 +2,17 @@
 
 World frame, metres, seconds. A candidate slide starts at a touch candidate
 ``c_i`` (a point of the estimated surface μ = 0 with outward normal n_i) and
-runs along the estimated surface in one of two directions ``±t_i`` (2D:
-t_i = z × n_i, the contour tangent; 3D: the horizontal tangent, the same
-formula). Its path is traced on the estimator's lattice: from x_0 = c_i,
+runs along the estimated surface in one of ``directions`` start directions
+(2D: ±t_i, t_i = z × n_i, the contour tangent; 3D: d_ik = cos a_k e1 + sin a_k e2,
+a_k = 2πk/D, in the tangent plane of e1 = the horizontal tangent z × n_i (x × n_i
+where n_i is within 6° of vertical) and e2 = n_i × e1, up the surface: D = 2 is
+±e1, a horizontal band; D = 4 adds the slides up and down the surface). Its path is traced on the estimator's lattice: from x_0 = c_i,
 step ``trace_step_m`` along the tangent, then two Newton steps back onto
 μ = 0 (x ← x − μ ∇μ/|∇μ|², μ and ∇μ bilinear/trilinear on the lattice), and
 carry the tangent over: t ← normalize(t − (t·n̂)n̂) with n̂ = ∇μ/|∇μ|. A
-trace ends where it leaves the lattice, loses the gradient or fails to
-return to μ = 0 within one step.
+trace ends where it leaves the lattice, loses the gradient, fails to
+return to μ = 0 within one step, or (3D) goes below ``min_z_m`` (the lowest
+tip-centre height: the commander's box would stop the slide there).
 
 Value of the first s = k·h metres (k steps of length h): the uncertainty it
 would remove, G_k = Σ_{j ≤ k} max(σ²(x_j) − ``known_var_m2``, 0)·h (the
@@ -22,7 +25,7 @@ pokes; approach and retract are a standoff each). The chosen slide is the
 (candidate, direction, length) with the highest G_k / T_k over
 ``slide_min_length_m`` ≤ s ≤ ``slide_max_length_m``: a long slide is chosen
 where the variance stays high along the way, a short one where the path
-runs into known surface. Cost O(M·K) lattice interpolations for M
+runs into known surface. Cost O(M·D·K) lattice interpolations for M
 candidates and K = max length / step.
 """
 
@@ -45,20 +48,24 @@ class SlideParams:
     min_length_m: float = 0.02
     trace_step_m: float = 0.003
     known_var_m2: float = 0.0
+    directions: int = 2  # start directions per candidate (3D; 2D always ±t)
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "SlideParams":
         """From the planner's parameters (``slide_max_length_m``, ``slide_min_length_m``,
-        ``slide_trace_step_m``, ``known_var_m2``)."""
+        ``slide_trace_step_m``, ``known_var_m2``, ``slide_directions_3d``)."""
         out = cls(float(p.get("slide_max_length_m", cls.max_length_m)),
                   float(p.get("slide_min_length_m", cls.min_length_m)),
                   float(p.get("slide_trace_step_m", cls.trace_step_m)),
-                  float(p.get("known_var_m2", cls.known_var_m2)))
+                  float(p.get("known_var_m2", cls.known_var_m2)),
+                  int(p.get("slide_directions_3d", cls.directions)))
         if not 0 < out.min_length_m <= out.max_length_m:
             raise ValueError(f"need 0 < slide_min_length_m ({out.min_length_m}) ≤ slide_max_length_m "
                              f"({out.max_length_m})")
         if not out.trace_step_m > 0:
             raise ValueError(f"slide_trace_step_m = {out.trace_step_m}: must be > 0")
+        if out.directions not in (2, 4, 8):
+            raise ValueError(f"slide_directions_3d = {out.directions}: must be 2, 4 or 8")
         return out
 
 
@@ -66,8 +73,8 @@ class SlideParams:
 class SlideChoice:
     """The chosen slide (index −1 when no candidate is reachable) and every score.
 
-    ``scores`` (M, 2): the best G/T of each candidate in direction +t / −t
-    (−inf unreachable); ``direction_xyz``: the unit start tangent; ``path_xyz``
+    ``scores`` (M, D): the best G/T of each candidate in each start direction
+    (:func:`start_directions`; −inf unreachable); ``direction_xyz``: the unit start tangent; ``path_xyz``
     (K+1, 3): the traced path of the chosen length on the estimate.
     """
 
@@ -89,6 +96,25 @@ def start_tangents(normal_xyz: np.ndarray) -> np.ndarray:
     return np.where(nrm > 1e-9, t / np.maximum(nrm, 1e-12), 0.0)
 
 
+def start_directions(normal_xyz: np.ndarray, count: int) -> np.ndarray:
+    """(M, D) x 3 unit start directions in each tangent plane (module docstring), direction k
+    at angle 2πk/D from e1 = z × n towards e2 = n × e1; D = 2 gives ±(z × n).
+
+    Where n is within ~6° of vertical (|z × n| < 0.1), e1 = x × n normalised: the horizontal
+    tangent is ill-defined there.
+    """
+    n = np.asarray(normal_xyz, dtype=float)
+    e1 = np.column_stack([-n[:, 1], n[:, 0], np.zeros(len(n))])
+    steep = np.linalg.norm(e1, axis=1) < 0.1
+    e1[steep] = np.cross([1.0, 0.0, 0.0], n[steep])
+    nrm = np.linalg.norm(e1, axis=1, keepdims=True)
+    e1 = np.where(nrm > 1e-9, e1 / np.maximum(nrm, 1e-12), 0.0)
+    e2 = np.cross(n, e1)
+    a = 2.0 * np.pi * np.arange(count) / count
+    c, s = np.round(np.cos(a), 15), np.round(np.sin(a), 15)  # exact ±1, 0 at the quarter turns
+    return c[None, :, None] * e1[:, None, :] + s[None, :, None] * e2[:, None, :]
+
+
 class _Field:
     """μ, ∇μ and σ² of the lattice, interpolated (points in the lattice's own dim)."""
 
@@ -106,12 +132,12 @@ class _Field:
 
 
 def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, step_m: float,
-          n_steps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          n_steps: int, min_z_m: float = -np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Trace paths along μ = 0 (module docstring) from (M, 3) starts along (M, 3) tangents.
 
     Returns (points (M, K+1, 3), variance (M, K+1), valid (M, K+1) bool); a
-    path is valid up to its first invalid step. In 2D the z column is the
-    start's.
+    path is valid up to its first invalid step (3D: a point below ``min_z_m``
+    is invalid). In 2D the z column is the start's.
     """
     field = _Field(lattice)
     d = field.dim
@@ -143,6 +169,8 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
         tn = np.linalg.norm(tt, axis=1, keepdims=True)
         alive &= tn[:, 0] > 1e-6
         t = np.where(tn > 1e-6, tt / np.maximum(tn, 1e-12), t)
+        if d == 3:
+            alive &= x[:, 2] >= min_z_m
         pts[:, k] = x
         ok[:, k] = alive
     var = field.var(pts.reshape(-1, d)).reshape(M, n_steps + 1)
@@ -153,39 +181,42 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
 
 
 def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.ndarray, reachable: np.ndarray,
-                 travel_m: np.ndarray, motion: MotionModel, approach_m: float, params: SlideParams) -> SlideChoice:
+                 travel_m: np.ndarray, motion: MotionModel, approach_m: float, params: SlideParams,
+                 min_z_m: float = -np.inf) -> SlideChoice:
     """The slide with the most uncertainty removed per second (module docstring).
 
     ``travel_m`` (M,): LMDP path length from the tip to each candidate's
-    pre-touch point; ``approach_m``: the expected approach (and retract) length.
+    pre-touch point; ``approach_m``: the expected approach (and retract) length;
+    ``min_z_m``: 3D, the lowest tip-centre height (a path below it is cut there).
     """
     M = len(target_xyz)
     h = float(params.trace_step_m)
     K = max(1, int(np.floor(params.max_length_m / h + 1e-9)))  # K·h ≤ the longest slide
     k_min = max(1, int(np.ceil(params.min_length_m / h - 1e-9)))
-    t0 = start_tangents(normal_xyz)
+    D = params.directions if lattice.dim == 3 else 2
+    dirs = start_directions(normal_xyz, D)  # (M, D, 3)
     ok_start = np.asarray(reachable, bool) & np.isfinite(np.asarray(travel_m, dtype=float))
     idx = np.nonzero(ok_start)[0]
-    scores = np.full((M, 2), -np.inf)
+    scores = np.full((M, D), -np.inf)
     empty = SlideChoice(-1, np.full(3, np.nan), float("nan"), -np.inf, 0.0, float("nan"), scores, np.zeros((0, 3)))
     if len(idx) == 0:
         return empty
-    starts = np.concatenate([target_xyz[idx], target_xyz[idx]])
-    tangents = np.concatenate([t0[idx], -t0[idx]])
-    pts, var, ok = trace(lattice, starts, tangents, h, K)
+    # rows direction-major: row j = direction j // m of candidate idx[j % m]
+    starts = np.tile(np.asarray(target_xyz, dtype=float)[idx], (D, 1))
+    tangents = dirs[idx].transpose(1, 0, 2).reshape(-1, 3)
+    pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m)
     valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
     w = np.where(valid, np.maximum(var - params.known_var_m2, 0.0), 0.0) * h
     gain = np.cumsum(w, axis=1)  # (2m, K+1): G_k
     s = np.arange(K + 1) * h
-    fixed = np.concatenate([motion.slide_time_s(travel_m[idx], approach_m, 0.0, approach_m)] * 2)
+    fixed = np.tile(motion.slide_time_s(travel_m[idx], approach_m, 0.0, approach_m), D)
     T = fixed[:, None] + s[None, :] / motion.slide_speed_mps
     ratio = np.where(valid, gain / T, -np.inf)
     ratio[:, :k_min] = -np.inf
     best_k = np.argmax(ratio, axis=1)
     best = ratio[np.arange(len(ratio)), best_k]
     m = len(idx)
-    scores[idx, 0] = best[:m]
-    scores[idx, 1] = best[m:]
+    scores[idx] = best.reshape(D, m).T
     if not np.isfinite(best).any():
         return empty
     j = int(np.argmax(best))
