@@ -104,11 +104,11 @@ def start_directions(normal_xyz: np.ndarray, count: int) -> np.ndarray:
     tangent is ill-defined there.
     """
     n = np.asarray(normal_xyz, dtype=float)
-    e1 = np.column_stack([-n[:, 1], n[:, 0], np.zeros(len(n))])
-    steep = np.linalg.norm(e1, axis=1) < 0.1
-    e1[steep] = np.cross([1.0, 0.0, 0.0], n[steep])
-    nrm = np.linalg.norm(e1, axis=1, keepdims=True)
-    e1 = np.where(nrm > 1e-9, e1 / np.maximum(nrm, 1e-12), 0.0)
+    e1 = start_tangents(n)
+    steep = np.hypot(n[:, 0], n[:, 1]) < 0.1  # |z × n|
+    x_n = np.cross([1.0, 0.0, 0.0], n[steep])
+    nrm = np.linalg.norm(x_n, axis=1, keepdims=True)
+    e1[steep] = np.where(nrm > 1e-9, x_n / np.maximum(nrm, 1e-12), 0.0)
     e2 = np.cross(n, e1)
     a = 2.0 * np.pi * np.arange(count) / count
     c, s = np.round(np.cos(a), 15), np.round(np.sin(a), 15)  # exact ±1, 0 at the quarter turns
@@ -207,7 +207,7 @@ def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.nda
     pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m)
     valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
     w = np.where(valid, np.maximum(var - params.known_var_m2, 0.0), 0.0) * h
-    gain = np.cumsum(w, axis=1)  # (2m, K+1): G_k
+    gain = np.cumsum(w, axis=1)  # (D·m, K+1): G_k
     s = np.arange(K + 1) * h
     fixed = np.tile(motion.slide_time_s(travel_m[idx], approach_m, 0.0, approach_m), D)
     T = fixed[:, None] + s[None, :] / motion.slide_speed_mps
