@@ -8,6 +8,8 @@ last test feeds the driver invalid fingertip poses (its message input).
 """
 
 import math
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -17,6 +19,7 @@ from sensor_msgs.msg import PointCloud2
 
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import from_pointcloud2
+from tactile_common.testing import device_hears_poses, status_of
 from tactile_common.stamps import time_from_s
 
 from fault_helpers import diag_values, pose_msg
@@ -40,11 +43,15 @@ class PoseScript:
         self.extra: list = []  # functions now_s -> PoseStamped, each published once
         self.ticks = 0
         self.pub = graph.node.create_publisher(PoseStamped, topics.FINGERTIP_POSE, qos.STATE)
+        self.device_diags = graph.collect(topics.DIAGNOSTICS, DiagnosticArray, 50, keep=status_of("sim_sensor_device"))
         graph.node.create_timer(PERIOD_S, self.publish)
 
     def wait_for_subscribers(self, contacts):
         self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2 and contacts.publishers, 20,
                             "pose subscribers and the contact writer")
+        # The count above is this end's view; the device may hear the poses seconds later (and then their
+        # backlog): an approach before that would be sensed at the far default pose, then deep.
+        self.graph.wait_for(lambda: device_hears_poses(self.device_diags), 20, "the device reading the poses")
 
     def go(self):
         self.moving = True
@@ -62,11 +69,12 @@ class PoseScript:
             self.pub.publish(self.extra.pop(0)(t))
 
 
-def _start(graph, link, *faults):
+def _start(graph, link, *faults, driver_params=()):
     graph.start("device", ["sim_sensor_device", "--ros-args", "-p", f"link_path:={link}", "-p", "object:=circle",
-                           "-p", "mode:=2d", "-p", "seed:=3", *faults])
+                           "-p", "mode:=2d", "-p", "seed:=3", "-p", "diagnostics_period_s:=0.25", *faults])
     graph.start("driver", ["tactile_sensor", "--ros-args", "-p", f"port:={link}", "-p", "layout_file:=taxels_ring.yaml",
-                           "-p", "reconnect_min_s:=0.05", "-p", "diagnostics_period_s:=0.25"])
+                           "-p", "reconnect_min_s:=0.05", "-p", "diagnostics_period_s:=0.25",
+                           *[a for kv in driver_params for a in ("-p", kv)]])
 
 
 STALE = ("stale_frames", "refused_no_pose")  # frames the driver could not use in time (it was starved)
@@ -120,7 +128,7 @@ FAULTS = {  # name: (device parameters, the diagnostics that must count it)
 def test_sensor_fault_is_reported_gives_no_false_contact_and_the_driver_still_senses(ros_graph, tmp_path, fault):
     g = ros_graph
     params, counters = FAULTS[fault]
-    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50)
+    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50, keep=status_of("tactile_sensor"))
     contacts = g.collect(topics.CONTACTS, PointCloud2, qos.OBSERVATIONS)
     script = PoseScript(g)
     _start(g, tmp_path / "sensor", *[a for kv in params for a in ("-p", kv)])
@@ -148,7 +156,7 @@ def test_sensor_fault_is_reported_gives_no_false_contact_and_the_driver_still_se
 
 def test_invalid_fingertip_poses_are_counted_and_contacts_still_use_the_valid_ones(ros_graph, tmp_path):
     g = ros_graph
-    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50)
+    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50, keep=status_of("tactile_sensor"))
     contacts = g.collect(topics.CONTACTS, PointCloud2, qos.OBSERVATIONS)
     script = PoseScript(g)
     _start(g, tmp_path / "sensor")
@@ -167,3 +175,27 @@ def test_invalid_fingertip_poses_are_counted_and_contacts_still_use_the_valid_on
     assert int(diag_values(diags[-1])["invalid_poses"]) == n_bad
     assert not contacts
     _approach_and_check(g, script, contacts, diags)
+
+
+def test_a_stalled_device_writes_each_frame_at_the_pose_of_its_time(ros_graph, tmp_path):
+    """The device process stops for the first 10 mm of the approach (SIGSTOP: what a starved process does);
+    the poses queue. Resumed, it must write the frames of the stall at the poses of their times, so the
+    contact lies on the circle. (Before: its timer ran before the queued poses and wrote those frames at
+    the parked pose, and the contact came out 6 mm deep.) The driver judges every frame however late
+    (``max_frame_age_s`` 5 s, as on the simulated rig), so only the device is under test."""
+    g = ros_graph
+    diags = g.collect(topics.DIAGNOSTICS, DiagnosticArray, 50, keep=status_of("tactile_sensor"))
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.OBSERVATIONS)
+    script = PoseScript(g)
+    _start(g, tmp_path / "sensor", driver_params=["max_frame_age_s:=5.0"])
+    g.wait_for(lambda: any(diag_values(m).get("calibrated") == "true" for m in diags), 30, "calibration")
+    script.wait_for_subscribers(contacts)
+    pid = g.procs["device"].popen.pid
+    os.killpg(pid, signal.SIGSTOP)
+    try:
+        script.go()
+        g.wait_for(lambda: script.travel_m >= 0.010, 10, "the tip 6 mm past the surface while the device is stopped")
+    finally:
+        os.killpg(pid, signal.SIGCONT)
+    g.wait_for(lambda: contacts, 15, "a contact")
+    _check_contact(contacts[0], diag=diag_values(diags[-1]) if diags else None)

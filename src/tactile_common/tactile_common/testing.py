@@ -57,6 +57,19 @@ class Received(list):
         return self.subscription.get_publisher_count()
 
 
+def status_of(name_prefix: str) -> Callable[[Any], bool]:
+    """A ``keep`` for :meth:`RosGraph.collect` on /diagnostics: the arrays whose first status is the named node's."""
+    return lambda msg: bool(msg.status) and msg.status[0].name.startswith(name_prefix)
+
+
+def device_hears_poses(device_diags: Sequence[Any], max_lag_s: float = 0.1) -> bool:
+    """``sim_sensor_device`` has read fingertip poses and is up to date with them (its last status)."""
+    if not device_diags:
+        return False
+    v = {kv.key: kv.value for kv in device_diags[-1].status[0].values}
+    return int(v["poses"]) > 0 and float(v["pose_lag_s"]) < max_lag_s
+
+
 class DomainLease:
     """Exclusive use of one ROS_DOMAIN_ID across processes (a file lock)."""
 
@@ -213,10 +226,16 @@ class RosGraph:
         end = time.monotonic() + duration_s
         self.wait_for(lambda: time.monotonic() >= end, duration_s + 5.0, f"{duration_s:g} s of {what}")
 
-    def collect(self, topic: str, msg_type: Any, qos: QoSProfile, raw: bool = False) -> Received:
-        """Subscribe now; the returned list fills with messages as the test spins."""
+    def collect(self, topic: str, msg_type: Any, qos: QoSProfile, raw: bool = False,
+                keep: Optional[Callable[[Any], bool]] = None) -> Received:
+        """Subscribe now; the returned list fills with messages (those ``keep`` accepts) as the test spins."""
         received = Received()
-        received.subscription = self.node.create_subscription(msg_type, topic, received.append, qos, raw=raw)
+
+        def on_message(msg: Any) -> None:
+            if keep is None or keep(msg):
+                received.append(msg)
+
+        received.subscription = self.node.create_subscription(msg_type, topic, on_message, qos, raw=raw)
         return received
 
     def wait_for_message(

@@ -7,11 +7,28 @@ writes the frames due up to the pose's stamp, so every frame shows the world
 at its own time even when poses arrive late. Without poses for
 ``pose_timeout_s``, a timer on the node clock (simulated time with
 ``use_sim_time``) keeps the device streaming at the last pose.
+
+The timeout is long (1 s) on purpose: rclpy's executor runs a due timer
+before the subscriptions that are ready, so after this process was starved
+the timer would write the frames of the starved interval at the old pose
+before the queued poses are read. Those frames show the finger where it no
+longer was: with a 0.1 s timeout, a contact came out 3-6 mm deep whenever
+the process stalled for longer during an approach (two CI failures).
+
+Health on /diagnostics (status ``sim_sensor_device``, every
+``diagnostics_period_s`` wall): poses received and how late the last one
+came (node clock minus its stamp), frames sent and lost. Until the first pose
+arrives the frames show the tip far from everything: a test or bench script
+waits for ``poses`` > 0 before it moves the tip (the publisher's subscription
+count alone does not say the device hears it: discovery matches the two ends
+at different times, and the backlog then arrives late).
 """
 
 from __future__ import annotations
 
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from tactile_common import qos, topics
@@ -30,8 +47,10 @@ PARAMS = {
     "layout_file": ("", "taxel layout YAML; '' = tactile_driver's taxels_ring.yaml (2d) / taxels_hemisphere.yaml (3d)"),
     "frame_rate_hz": (200.0, "frame rate in node-clock time", {"gt": 0.0}),
     "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)", {"gt": 0.0}),
-    "pose_timeout_s": (0.1, "without a pose this long, the timer drives the device", {"gt": 0.0}),
+    "pose_timeout_s": (1.0, "without a pose this long (s, node clock), the timer drives the device at the last pose; "
+                       "longer than any stall of this process (module docstring)", {"gt": 0.0}),
     "seed": (0, "seed of the noise, baselines and faults", {"ge": 0}),
+    "diagnostics_period_s": (1.0, "period of the device's /diagnostics status (wall clock)", {"gt": 0.0}),
     **OBJECT_PARAMETERS,
     **DEVICE_PARAMETERS,
 }
@@ -53,8 +72,13 @@ class SimSensorDeviceNode(Node):
         self.device.open()
         self.pose_timeout_s = p.pose_timeout_s
         self._last_pose_s = None
+        self._poses = 0
+        self._pose_lag_s = float("nan")  # node clock minus the stamp, when the last pose was read
         self.create_subscription(PoseStamped, topics.FINGERTIP_POSE, self._on_pose, qos.STATE)
         self.create_timer(p.step_period_s, self._step)
+        self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
+        self.create_timer(p.diagnostics_period_s, self._publish_diagnostics,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.get_logger().info(f"sim_sensor_device: object '{p.object}' ({p.mode}), {layout.n_taxels} taxels "
                                f"at {p.frame_rate_hz:g} Hz on {p.link_path}")
 
@@ -67,12 +91,33 @@ class SimSensorDeviceNode(Node):
             self.get_logger().warn(f"ignored fingertip pose: {exc}", throttle_duration_sec=5.0)
             return
         self._last_pose_s = t_s
+        self._poses += 1
+        self._pose_lag_s = self.get_clock().now().nanoseconds * 1e-9 - t_s
         self.device.step(t_s)
 
     def _step(self) -> None:
         now_s = self.get_clock().now().nanoseconds * 1e-9
         if self._last_pose_s is None or now_s - self._last_pose_s > self.pose_timeout_s:
             self.device.step(now_s)
+
+    def _publish_diagnostics(self) -> None:
+        st = self.device.stats
+        if self._poses == 0:
+            level, message = DiagnosticStatus.WARN, "no fingertip pose yet: the frames show the tip far away"
+        elif self._pose_lag_s > self.pose_timeout_s:
+            level, message = DiagnosticStatus.WARN, f"fingertip poses arrive {self._pose_lag_s:.2f} s late"
+        else:
+            level, message = DiagnosticStatus.OK, "following the fingertip pose"
+        counts = {"poses": self._poses, "pose_lag_s": f"{self._pose_lag_s:.3f}", "frames_sent": st.frames_sent,
+                  "frames_lost": st.frames_lost, "frames_dropped": st.frames_dropped,
+                  "garbage_bytes": st.garbage_bytes, "crc_corrupted": st.crc_corrupted,
+                  "disconnects": st.disconnects, "reconnects": st.reconnects}
+        status = DiagnosticStatus(level=level, name="sim_sensor_device", message=message,
+                                  hardware_id=str(self.device.link_path),
+                                  values=[KeyValue(key=k, value=str(v)) for k, v in counts.items()])
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._pub_diag.publish(msg)
 
     def close(self) -> None:
         self.device.close()
