@@ -228,7 +228,7 @@ class TouchPlanner:
             lattice = type(lattice)(tuple(a[::s] for a in lattice.axes), lattice.mean_m[sl],
                                     lattice.variance_m2[sl], lattice.plane_z_m)
         q = float(p["search_quantile"])
-        min_z = float(p["min_tip_z_m"]) if dim == 3 else -np.inf
+        min_z = self._min_tip_z_m(dim)
         if not len(cands) and q > 0 and object_lost(lattice, min_z):  # search for it
             searched = self._search(lattice, tip, excluded_targets, q, min_z, "no estimated surface", lost=True)
             if searched is not None:
@@ -243,6 +243,10 @@ class TouchPlanner:
             if searched is not None and searched.ok:
                 return searched
         return res
+
+    def _min_tip_z_m(self, dim: int) -> float:
+        """The lowest tip-centre height a touch may reach: ``min_tip_z_m`` in 3D, none in 2D (a section)."""
+        return float(self.params["min_tip_z_m"]) if dim == 3 else -np.inf
 
     def _search(self, lattice, tip, excluded_targets, q: float, min_z: float, why: str,
                 lost: bool = False) -> PlanResult | None:
@@ -414,7 +418,7 @@ class TouchPlanner:
         if p["touch"] == "slide":  # the slide with the most variance removed per second (tactile_planner.slides)
             slide = slides.choose_slide(lattice, target, normal, reachable, sol.travel_m, MotionModel.from_params(p),
                                         float(p["standoff_m"]), slides.SlideParams.from_params(p),
-                                        float(p["min_tip_z_m"]) if lattice.dim == 3 else -np.inf)
+                                        self._min_tip_z_m(lattice.dim))
             if slide.index >= 0:
                 idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)
