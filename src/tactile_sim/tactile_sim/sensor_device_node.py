@@ -48,7 +48,7 @@ PARAMS = {
     "frame_rate_hz": (200.0, "frame rate in node-clock time", {"gt": 0.0}),
     "step_period_s": (0.005, "timer period that writes the due frames without poses (node clock)", {"gt": 0.0}),
     "pose_timeout_s": (1.0, "without a pose this long (s, node clock), the timer drives the device at the last pose; "
-                       "longer than any stall of this process (module docstring)", {"gt": 0.0}),
+                       "longer than the stalls of a loaded machine (module docstring)", {"gt": 0.0}),
     "seed": (0, "seed of the noise, baselines and faults", {"ge": 0}),
     "diagnostics_period_s": (1.0, "period of the device's /diagnostics status (wall clock)", {"gt": 0.0}),
     **OBJECT_PARAMETERS,
@@ -102,8 +102,11 @@ class SimSensorDeviceNode(Node):
 
     def _publish_diagnostics(self) -> None:
         st = self.device.stats
+        silent_s = self.get_clock().now().nanoseconds * 1e-9 - (self._last_pose_s or 0.0)
         if self._poses == 0:
             level, message = DiagnosticStatus.WARN, "no fingertip pose yet: the frames show the tip far away"
+        elif silent_s > self.pose_timeout_s:
+            level, message = DiagnosticStatus.WARN, f"no fingertip pose for {silent_s:.1f} s: streaming at the last one"
         elif self._pose_lag_s > self.pose_timeout_s:
             level, message = DiagnosticStatus.WARN, f"fingertip poses arrive {self._pose_lag_s:.2f} s late"
         else:
