@@ -82,3 +82,37 @@ def test_an_approach_is_shortened_to_end_inside_the_box_and_refused_when_it_cann
     assert motions.approach_depth_m(start, [1.0, 0.0, 0.0], 0.04) == 0.04  # far from every face: unchanged
     with pytest.raises(OutsideWorkspace, match="outside the safety box"):  # 5 mm left: the standoff is 10
         motions.approach_depth_m(np.array([0.45, 0.0, floor + 0.005]), down, 0.04, 0.01)
+
+
+def test_a_path_may_leave_a_tip_a_hair_outside_the_box_but_not_go_there(motions):
+    """A motion can end a few µm past a face (joint interpolation between box-checked waypoints: 13 µm
+    below the floor, seen after a touch there). A path that starts at that tip is a way back, not a
+    target there; a path whose first point is a target outside is still refused."""
+    from tactile_driver.ik import IKSettings, solve_ik
+
+    floor = motions.box.lower_xyz[2]
+    below = np.array([0.45, 0.0, floor - 13e-6])
+    q_near = motions.tip_path(np.array([[0.45, 0.0, floor + 0.01]]), motions.home).positions_rad[-1]
+    q_below = solve_ik(motions.model, below, q_near, IKSettings(tol_m=1e-7)).q
+    tip = motions.model.fk(q_below)[0]
+    assert tip[2] < floor  # the arm is there, outside the box
+    up = motions.tip_path(np.array([tip, tip + [0.0, 0.0, 0.02]]), q_below)
+    assert up.tip_xyz[-1] == pytest.approx(tip + [0.0, 0.0, 0.02], abs=1e-4)
+    assert up.tip_xyz[1:, 2].min() >= floor
+    with pytest.raises(OutsideWorkspace, match="tip point 0 outside the safety box: z=0.0149"):
+        motions.tip_path(np.array([below, tip + [0.0, 0.0, 0.02]]), q_near)  # going there: refused
+
+
+def test_an_approach_from_a_pretouch_point_the_ik_put_a_hair_below_the_floor(motions):
+    """A pre-touch point planned on the floor (the planner's lowest tip height is the box floor) is
+    reached within the IK's accuracy, possibly below it: the approach along the floor still gets its
+    depth and a target inside the box; a start farther outside still gets none."""
+    floor = motions.box.lower_xyz[2]
+    side = np.array([1.0, 0.0, 0.0])
+    start = np.array([0.45, 0.0, floor - 13e-6])
+    assert motions.approach_depth_m(start, side, 0.04) == 0.04
+    assert motions.into_box(start)[2] == floor and np.all(motions.into_box(start)[:2] == start[:2])
+    far = np.array([0.45, 0.0, floor - 1e-3])  # 1 mm below: not rounding
+    assert np.all(motions.into_box(far) == far)
+    with pytest.raises(OutsideWorkspace):
+        motions.approach_depth_m(far, side, 0.04, 0.01)

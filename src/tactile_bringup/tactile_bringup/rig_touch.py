@@ -205,7 +205,7 @@ class RigFinger:
         origin = m.model.fk(q_origin)[0]
         n = np.linalg.norm(direction)
         depth_m = m.approach_depth_m(origin, direction, self.geometry.approach_length_m)  # as ArmCommander.approach
-        approach = m.tip_path(origin + direction / n * depth_m, q_origin, cfg.approach_speed_mps,
+        approach = m.tip_path(m.into_box(origin) + direction / n * depth_m, q_origin, cfg.approach_speed_mps,
                               cfg.approach_step_m)
         hit, _ = self._run(approach, settle_s=self.contact_latency_s)
         travel = float(np.linalg.norm(self._tip_at(hit.stamp_s) - origin)) if hit is not None else 0.0

@@ -200,7 +200,8 @@ class ArmCommander:
             depth_m = self.approach_depth_m(origin, d, max_depth_m)
         except OutsideWorkspace as exc:
             return self._reject("approach", str(exc))
-        ok = self._start("approach", origin + d / n * depth_m, self.cfg.approach_speed_mps, self.cfg.approach_step_m)
+        ok = self._start("approach", self.motions.into_box(origin) + d / n * depth_m, self.cfg.approach_speed_mps,
+                         self.cfg.approach_step_m)
         if ok:
             self.approach_origin_xyz, self.approach_origin_q = origin, np.array(q_origin, dtype=float)
         return ok

@@ -29,7 +29,7 @@ class OutsideWorkspace(ValueError):
         self.point_xyz = np.asarray(point_xyz, dtype=float)
         self.lower_xyz, self.upper_xyz = lower_xyz, upper_xyz
         axes = [
-            f"{'xyz'[i]}={self.point_xyz[i]:.4f} not in [{lower_xyz[i]:.4f}, {upper_xyz[i]:.4f}]"
+            f"{'xyz'[i]}={self.point_xyz[i]:.6f} not in [{lower_xyz[i]:.6f}, {upper_xyz[i]:.6f}]"
             for i in range(3)
             if not lower_xyz[i] <= self.point_xyz[i] <= upper_xyz[i]
         ] or ["not finite"]
@@ -59,10 +59,10 @@ class WorkspaceBox:
             raise ValueError(f"safety box floor {lower[2]:.3f} m is not below its top {upper[2]:.3f} m")
         return cls(lower, upper)
 
-    def inside(self, points_xyz: np.ndarray) -> np.ndarray:
-        """(N,) bool: point inside the box (NaN is outside)."""
+    def inside(self, points_xyz: np.ndarray, slack_m: float = 0.0) -> np.ndarray:
+        """(N,) bool: point inside the box grown by ``slack_m`` on every face (NaN is outside)."""
         p = np.atleast_2d(np.asarray(points_xyz, dtype=float))
-        return np.all((p >= self.lower_xyz) & (p <= self.upper_xyz), axis=1)
+        return np.all((p >= self.lower_xyz - slack_m) & (p <= self.upper_xyz + slack_m), axis=1)
 
     def reach_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray) -> float:
         """How far the tip can go from ``start_xyz`` (inside the box) along ``direction_xyz`` and stay
@@ -75,10 +75,12 @@ class WorkspaceBox:
             to_face = np.where(d > 0, (self.upper_xyz - p) / d, np.where(d < 0, (self.lower_xyz - p) / d, np.inf))
         return float(np.min(to_face))
 
-    def check(self, points_xyz: np.ndarray) -> None:
-        """Raise :class:`OutsideWorkspace` for the first point outside the box."""
+    def check(self, points_xyz: np.ndarray, first: int = 0, slack_m: float = 0.0) -> None:
+        """Raise :class:`OutsideWorkspace` for the first point (from index ``first`` on) outside the box
+        grown by ``slack_m`` (the IK's accuracy, for waypoints it computed towards targets inside)."""
         p = np.atleast_2d(np.asarray(points_xyz, dtype=float))
-        ok = self.inside(p)
+        ok = self.inside(p, slack_m)
+        ok[:first] = True
         if not ok.all():
             i = int(np.flatnonzero(~ok)[0])
             raise OutsideWorkspace(i, p[i], self.lower_xyz, self.upper_xyz)
