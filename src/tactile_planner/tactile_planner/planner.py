@@ -85,9 +85,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "slide_max_length_m": (0.6, "slide: longest planned slide (a closed contour also ends it: the servo's lap rule)", {"gt": 0.0}),
     "slide_min_length_m": (0.02, "slide: shortest planned slide", {"gt": 0.0}),
     "slide_trace_step_m": (0.003, "slide: step of the path traced along the estimated surface", {"gt": 0.0}),
-    "slide_directions_3d": (2, "slide, 3D: start directions per candidate in its tangent plane: 2 = along the "
+    "slide_directions_3d": (4, "slide, 3D: start directions per candidate in its tangent plane: 2 = along the "
                             "horizontal band (±z × n), 4 = also up and down the surface, 8 = also the diagonals "
-                            "(tactile_planner.slides)", {"choices": (2, 4, 8)}),
+                            "(tactile_planner.slides; 4 measured best, docs/benchmarks.md)", {"choices": (2, 4, 8)}),
     "sequential_step_rad": (0.2, "sequential strategy: minimum angular step around the centroid", {"ge": 0.0}),
     "info_gain_length_scale_m": (0.03, "info_gain: correlation length of the approximate GP update", {"gt": 0.0}),
     "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),

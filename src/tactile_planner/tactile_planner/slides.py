@@ -48,7 +48,7 @@ class SlideParams:
     min_length_m: float = 0.02
     trace_step_m: float = 0.003
     known_var_m2: float = 0.0
-    directions: int = 2  # start directions per candidate (3D; 2D always ±t)
+    directions: int = 4  # start directions per candidate (3D; 2D always ±t)
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "SlideParams":
