@@ -85,9 +85,9 @@ def test_an_approach_is_shortened_to_end_inside_the_box_and_refused_when_it_cann
 
 
 def test_a_path_may_leave_a_tip_a_hair_outside_the_box_but_not_go_there(motions):
-    """A motion can end a few µm past a face (joint interpolation between box-checked waypoints: 13 µm
-    below the floor, seen after a touch there). A path that starts at that tip is a way back, not a
-    target there; a path whose first point is a target outside is still refused."""
+    """A motion can end a few µm past a face (the IK's residual, up to ``ik_tol_m``, at a point planned on
+    it: 13 µm below the floor, seen at a pre-touch point there). A path that starts at that tip is a way
+    back, not a target there; a path whose first point is a target outside is still refused."""
     from tactile_driver.ik import IKSettings, solve_ik
 
     floor = motions.box.lower_xyz[2]

@@ -19,7 +19,7 @@ from sensor_msgs.msg import PointCloud2
 
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import from_pointcloud2
-from tactile_common.testing import device_hears_poses, status_of
+from tactile_common.testing import status_of, wait_for_pose_readers
 from tactile_common.stamps import time_from_s
 
 from fault_helpers import diag_values, pose_msg
@@ -47,11 +47,7 @@ class PoseScript:
         graph.node.create_timer(PERIOD_S, self.publish)
 
     def wait_for_subscribers(self, contacts):
-        self.graph.wait_for(lambda: self.pub.get_subscription_count() >= 2 and contacts.publishers, 20,
-                            "pose subscribers and the contact writer")
-        # The count above is this end's view; the device may hear the poses seconds later (and then their
-        # backlog): an approach before that would be sensed at the far default pose, then deep.
-        self.graph.wait_for(lambda: device_hears_poses(self.device_diags), 20, "the device reading the poses")
+        wait_for_pose_readers(self.graph, self.pub, contacts, self.device_diags)
 
     def go(self):
         self.moving = True

@@ -70,6 +70,19 @@ def device_hears_poses(device_diags: Sequence[Any], max_lag_s: float = 0.1) -> b
     return int(v["poses"]) > 0 and float(v["pose_lag_s"]) < max_lag_s
 
 
+def wait_for_pose_readers(graph: "RosGraph", pose_pub: Any, contacts: "Received", device_diags: Sequence[Any],
+                          timeout_s: float = 20.0) -> None:
+    """A bench script's pose stream is heard: ``sim_sensor_device`` and ``tactile_sensor`` subscribe to
+    ``pose_pub``, the test hears the driver's ``contacts``, and the device reads the poses up to date.
+
+    The subscription count is this end's view; the device may hear the poses seconds later (then their
+    backlog), and an approach before that would be sensed at the device's far default pose, then deep.
+    """
+    graph.wait_for(lambda: pose_pub.get_subscription_count() >= 2 and contacts.publishers, timeout_s,
+                   "pose subscribers and the contact writer")
+    graph.wait_for(lambda: device_hears_poses(device_diags), timeout_s, "the device reading the poses")
+
+
 class DomainLease:
     """Exclusive use of one ROS_DOMAIN_ID across processes (a file lock)."""
 
