@@ -117,3 +117,30 @@ def test_a_path_through_the_object_stops_on_its_surface_and_backs_off():
     back_off_m = exp.planner_params["tip_radius_m"] + exp.planner_params["standoff_m"]
     assert np.linalg.norm(back - p) == pytest.approx(back_off_m)
     assert circle.sdf(np.array([back[:2]]))[0] > exp.planner_params["tip_radius_m"] + 0.5 * exp.planner_params["standoff_m"]
+
+
+def test_touches_aborted_again_and_again_end_the_run_after_the_explorers_retries():
+    """An aborted poke (the arm followed the path, the approach was refused) is re-planned from the
+    arm's pose, as the explorer re-issues it; after max_retries in a row the run stops and says why."""
+    from tactile_bringup.poke_result import PokeResult
+
+    exp = Experiment(mode="2d", object_name="circle", strategy="proposed", touches=5, seed=0)
+    loop = ExplorationLoop(exp)
+    pokes, ends = [], []
+
+    class RefusingRig:
+        def poke(self, plan, tip_xyz=None, touch_index=0):
+            pokes.append(np.asarray(tip_xyz, float))
+            ends.append(np.asarray(plan.pretouch_xyz, float))
+            nan3 = np.full(3, np.nan)
+            return PokeResult("aborted", nan3, nan3, 0.0, None, np.asarray(plan.pretouch_xyz, float), None, 0.0,
+                              reason="approach: refused")
+
+    loop.poker = RefusingRig()
+    report = loop.run()
+    assert len(pokes) == loop.max_retries + 1 == 4
+    stopped = report["summary"]["stopped_because"]
+    assert report["touches"] == [] and "gave up after 3 retries" in stopped and "approach: refused" in stopped, stopped
+    assert np.allclose(pokes[0], exp.start_tip_xyz)
+    for start, previous_end in zip(pokes[1:], ends):  # re-planned from where the arm stopped
+        assert np.array_equal(start, previous_end)

@@ -121,3 +121,26 @@ def test_a_touch_near_the_table_gets_a_shorter_approach_and_one_below_the_floor_
     res = rig.poke(_plan(rig, below, up))
     assert res.outcome == "unreachable" and "outside the safety box" in res.reason, res
     assert np.array_equal(rig.q, q)
+
+
+def test_an_approach_refused_at_the_end_of_the_path_aborts_the_touch_where_the_arm_stopped(experiment):
+    """The commander plans the approach again from where IK put the path's end and ends the touch
+    'aborted' when that plan is refused (touch_executor); offline, the arm has then followed the path."""
+    from tactile_driver.safety import OutsideWorkspace
+
+    rig = _rig(experiment)
+    n = np.array([-1.0, 0.0, 0.0])
+    plan = _plan(rig, CENTRE + RADIUS_M * n, n)
+    calls, plan_depth = [], rig.motions.approach_depth_m
+
+    def refuse_the_second(start_xyz, direction_xyz, depth_m, min_depth_m=0.0):
+        calls.append(start_xyz)
+        if len(calls) == 2:
+            raise OutsideWorkspace(0, np.asarray(start_xyz), rig.motions.box.lower_xyz, rig.motions.box.upper_xyz)
+        return plan_depth(start_xyz, direction_xyz, depth_m, min_depth_m)
+
+    rig.motions.approach_depth_m = refuse_the_second
+    res = rig.poke(plan)
+    assert res.outcome == "aborted" and res.reason.startswith("approach:") and not res.contact, res
+    assert np.linalg.norm(res.end_xyz - plan.pretouch_xyz) < 2e-4  # the path's end (IK tolerance)
+    assert np.linalg.norm(rig.motions.model.fk(rig.q)[0] - plan.pretouch_xyz) < 2e-4  # the next touch starts there

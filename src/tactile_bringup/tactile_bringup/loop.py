@@ -52,6 +52,7 @@ class ExplorationLoop:
         self.poker = RigFinger(experiment, self.evaluator.obj) if self.touch == "poke" else self.finger
         explorer = experiment.node_params("explorer")
         self.max_unreachable = int(explorer.get("max_unreachable", CycleConfig.max_unreachable))  # as the explorer
+        self.max_retries = int(explorer.get("max_retries", CycleConfig.max_retries))
         self.standoff_m = float(experiment.planner_params.get("standoff_m", 0.01))
 
     @property
@@ -66,7 +67,7 @@ class ExplorationLoop:
         prior_iou = self.evaluator.iou(self.estimator)
         stopped = "touch budget" if exp.touches > 0 else "no touches asked"
         excluded: list[np.ndarray] = []  # targets reported unreachable (the planner node's exclusion)
-        unreachable_in_row = 0
+        unreachable_in_row = aborts_in_row = 0
         while stop_reason(exp, touches) is None:
             t0 = time.perf_counter()
             plan = self.planner.plan(self.estimator.map_array(), tip, np.array(excluded).reshape(-1, 3))
@@ -100,7 +101,17 @@ class ExplorationLoop:
                         stopped = f"{unreachable_in_row} unreachable goals in a row"
                         break
                     continue
-                unreachable_in_row = 0
+                if poke.outcome == "aborted":  # moved along the path, refused the approach: the explorer's retry
+                    path_m = polyline_length_m(path)
+                    travel_m += path_m
+                    time_s += self.motion.path_contact_time_s(path_m, 0.0)
+                    tip = np.asarray(poke.end_xyz, dtype=float)
+                    aborts_in_row += 1
+                    if aborts_in_row > self.max_retries:
+                        stopped = f"touch aborted: {poke.reason}; gave up after {self.max_retries} retries"
+                        break
+                    continue
+                unreachable_in_row = aborts_in_row = 0
                 contact, point, normal, sweep, tip = poke.contact, poke.point_xyz, poke.normal_xyz, poke.sweep_xyz, \
                     np.asarray(poke.end_xyz, dtype=float)
                 free_m = followed_m = poke.path_followed_m

@@ -11,7 +11,9 @@ offline loop makes the graph's observations (docs/exploration.md, "Determinism")
    (goal and path as the planner node encodes them: the approach direction is
    the x-axis of the goal's quaternion), the guarded approach re-planned from the
    path's end joints, and the back-off along a path that met the object. An
-   infeasible touch is ``unreachable`` (nothing moves), as on the graph.
+   infeasible touch is ``unreachable`` (nothing moves), as on the graph; an
+   approach refused when re-planned from the path's end is ``aborted`` (the arm
+   stays there and the loop re-plans from it, as the explorer re-issues it).
 2. The rig's sampling: each motion starts on the 10 ms tick grid (the graph's
    timed starts); per tick the controller's joints (the trajectory's times
    rounded to the nanosecond, as a JointTrajectory carries them), the
@@ -204,9 +206,13 @@ class RigFinger:
         q_origin = np.array(to_goal.positions_rad[-1], dtype=float)
         origin = m.model.fk(q_origin)[0]
         n = np.linalg.norm(direction)
-        depth_m = m.approach_depth_m(origin, direction, self.geometry.approach_length_m)  # as ArmCommander.approach
-        approach = m.tip_path(m.into_box(origin) + direction / n * depth_m, q_origin, cfg.approach_speed_mps,
-                              cfg.approach_step_m)
+        try:  # planned again from where IK put the path's end, as ArmCommander.approach
+            depth_m = m.approach_depth_m(origin, direction, self.geometry.approach_length_m)
+            approach = m.tip_path(m.into_box(origin) + direction / n * depth_m, q_origin, cfg.approach_speed_mps,
+                                  cfg.approach_step_m)
+        except (OutsideWorkspace, TrajectoryError) as exc:  # the commander's touch ends 'aborted' there
+            self.q = q_origin
+            return PokeResult("aborted", nan3, nan3, 0.0, None, origin, None, 0.0, reason=f"approach: {exc}")
         hit, _ = self._run(approach, settle_s=self.contact_latency_s)
         travel = float(np.linalg.norm(self._tip_at(hit.stamp_s) - origin)) if hit is not None else 0.0
         self._release(q_origin)
