@@ -24,8 +24,10 @@ ARM_YAML = ROOT / "src/tactile_driver/config/arm_commander.yaml"
 
 
 def commander_monitor(**kwargs) -> TrajectoryMonitor:
-    """A monitor with the limits and the box of the commander's parameter file."""
+    """A monitor with the limits and the box of the commander's parameter file (the box grown by its
+    ``ik_tol_m``, as the commander checks IK waypoints)."""
     p = yaml.safe_load(ARM_YAML.read_text())["arm_commander"]["ros__parameters"]
+    kwargs.setdefault("box_slack_m", p["ik_tol_m"])
     model = ArmModel(p["urdf_path"], p["joint_names"], p["flange_frame"], p["tip_offset_m"])
     return TrajectoryMonitor.from_params(model, p["max_joint_velocity_rad_s"], p["max_joint_acceleration_rad_s2"],
                                          p["box_x_m"], p["box_y_m"], p["box_z_m"], p["table_z_m"],

@@ -148,3 +148,22 @@ def test_a_stop_is_always_safe(monitor):
     m = _fresh(monitor)
     assert m.check(NAMES, [], np.zeros((0, 7))) == []
     assert m.checked == 1
+
+
+def test_the_box_slack_allows_the_iks_accuracy_and_no_more():
+    """The commander lets an IK waypoint lie up to ik_tol_m (0.1 mm) outside the box: a tip held 50 µm
+    above the box's top face is a violation for an exact monitor, not for one with that slack; 0.5 mm
+    above is one for both."""
+    top = ArmModel().fk(HOME)[0][2]
+    t, q, qd = np.array([0.0, 1.0]), np.vstack([HOME, HOME]), np.zeros((2, 7))
+
+    def found(over_m, slack_m):
+        m = TrajectoryMonitor.from_params(ArmModel(), [V_MAX] * 7, [A_MAX] * 7, (0.25, 0.75), (-0.30, 0.30),
+                                          (0.0, top - over_m), box_slack_m=slack_m)
+        return [v.kind for v in m.check(NAMES, t, q, qd, q_now=HOME)]
+
+    assert found(5e-5, 0.0) == ["workspace"]
+    assert found(5e-5, 1e-4) == []
+    assert found(5e-4, 1e-4) == ["workspace"]
+    with pytest.raises(ValueError):
+        found(0.0, -1e-4)

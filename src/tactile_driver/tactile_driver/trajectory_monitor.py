@@ -16,7 +16,10 @@ scipy, not with the planner's code:
   velocity 3 c0 τ² + 2 c1 τ + c2 at the ends or at τ* = −c1 / (3 c0);
   position at the ends or at the real roots of the velocity in (0, h_k).
 - the tip (world frame) is checked against the box at every knot and at
-  ``samples_per_segment`` points inside each segment (FK is not polynomial).
+  ``samples_per_segment`` points inside each segment (FK is not polynomial),
+  grown by ``box_slack_m``: the commander lets IK waypoints lie up to its
+  ``ik_tol_m`` outside (a point planned on a face, e.g. the box floor), so a
+  monitor of the commander uses that (``commander_monitor`` in the tests).
 - a first point at ``time_from_start`` 0 must equal the measured state
   (within ``start_tolerance_rad``): the controller would jump to it; a later
   first point makes the measured state (at rest) the first knot.
@@ -63,9 +66,10 @@ class TrajectoryMonitor:
     """Checks trajectories against joint limits and the tip's workspace box (see the module docstring)."""
 
     def __init__(self, model: ArmModel, limits: MotionLimits, box: WorkspaceBox, samples_per_segment: int = 8,
-                 tolerance: float = 1e-6, start_tolerance_rad: float = 0.01) -> None:
-        if samples_per_segment < 0 or tolerance < 0 or start_tolerance_rad < 0:
-            raise ValueError("samples_per_segment, tolerance and start_tolerance_rad must be >= 0")
+                 tolerance: float = 1e-6, start_tolerance_rad: float = 0.01, box_slack_m: float = 0.0) -> None:
+        if samples_per_segment < 0 or tolerance < 0 or start_tolerance_rad < 0 or not box_slack_m >= 0:
+            raise ValueError("samples_per_segment, tolerance, start_tolerance_rad and box_slack_m must be >= 0")
+        self.box_slack_m = float(box_slack_m)
         self.model, self.limits, self.box = model, limits, box
         self.samples_per_segment = int(samples_per_segment)
         self.tolerance = float(tolerance)
@@ -198,7 +202,7 @@ class TrajectoryMonitor:
 
     def _workspace(self, ts, qs) -> list[Violation]:
         tips = np.array([self.model.fk(q)[0] for q in np.atleast_2d(qs)])
-        outside = ~self.box.inside(tips)
+        outside = ~self.box.inside(tips, self.box_slack_m)
         if not outside.any():
             return []
         i = int(np.flatnonzero(outside)[0])
