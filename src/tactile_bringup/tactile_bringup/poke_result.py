@@ -18,8 +18,9 @@ class PokeResult:
     """One poke as the graph senses it (world frame, m).
 
     ``outcome``: 'contact', 'free_space', 'unreachable' (nothing moved) or 'aborted' (the arm followed
-    the path and stopped at its end, ``end_xyz``: the commander refused the approach from there). A contact: ``point_xyz``, ``normal_xyz``
-    (unit outward; NaN when the sensor cannot tell) and ``force_n`` of the driver's onset; free space:
+    the path and stopped at its end, ``end_xyz``: the commander refused the approach from there).
+    A contact: ``point_xyz``, ``normal_xyz`` (unit outward; NaN when the sensor cannot tell) and
+    ``force_n`` of the driver's onset; free space:
     ``point_xyz`` = the probe end (tip centre) and ``sweep_xyz`` = from there back to the approach's
     start. ``end_xyz``: the nominal end (the pre-touch point, or the back-off point after a contact on
     the path; the next touch starts there). ``path_followed_m``: tip path length before a contact on
