@@ -39,6 +39,7 @@ MODULE_TO_ROSDEP = {
     "example_robot_data": "example-robot-data",
     "mcap": "python3-mcap",
     "contourpy": "python3-contourpy",  # not in rosdistro either; Debian/Ubuntu's package name
+    "distributed": "python3-distributed",  # Dask's scheduler client (Debian/Ubuntu's package name)
     **{p: p for p in PACKAGES},
 }
 

@@ -20,12 +20,12 @@ below the target.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
-import multiprocessing as mp
 import os
 import sys
+import tempfile
 import time
-from functools import partial
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -34,7 +34,9 @@ import numpy as np
 from . import plots
 from .cli_common import Parser, add_experiment_args, integer, run_main
 from .progress_bar import ProgressBar
-from .sweep import failure_line, guarded, is_failure
+from .sweep import failure_line, is_failure
+from .sweep_backends import cluster_address, dask_cluster, local_pool
+from .sweep_log import LOG_NAME, SweepLog, job_key
 from .experiment import Experiment
 from .loop import ExplorationLoop
 from .report import _clean
@@ -43,22 +45,59 @@ STRATEGIES = ("proposed", "uncertainty", "random", "sequential", "info_gain")
 
 
 def _one_run(job: dict) -> dict:
-    """Run one (object, strategy, seed); keep the final shapes for the gallery."""
-    exp = Experiment(mode=job["mode"], object_name=job["object"], strategy=job["strategy"],
-                     alpha=job["alpha"], seed=job["seed"], touches=job["touches"],
-                     user_params_files=job["params"], touch=job.get("touch"))
-    loop = ExplorationLoop(exp)
-    t0 = time.perf_counter()
-    report = loop.run()
+    """Run one (object, strategy, seed); keep the final shapes for the gallery.
+
+    The job carries the text of its parameter files and the bytes of an object file
+    (``params_text``, ``object_file``): they are written to a private folder here, so a
+    worker on another machine needs no shared disk, and a file edited while the sweep
+    runs does not change the runs still to come.
+    """
+    with tempfile.TemporaryDirectory(prefix="tactile-run-") as tmp:
+        params = job["params"]
+        if job.get("params_text") is not None:
+            params = []
+            for i, (path, text) in enumerate(zip(job["params"], job["params_text"])):
+                params.append(Path(tmp) / f"{i}-{Path(path).name}")
+                params[-1].write_text(text)
+        obj = job["object"]
+        if job.get("object_file") is not None:
+            obj = str(Path(tmp) / f"object{Path(obj).suffix}")
+            Path(obj).write_bytes(job["object_file"])
+        exp = Experiment(mode=job["mode"], object_name=obj, strategy=job["strategy"],
+                         alpha=job["alpha"], seed=job["seed"], touches=job["touches"],
+                         user_params_files=params, touch=job.get("touch"))
+        loop = ExplorationLoop(exp)
+        t0 = time.perf_counter()
+        report = loop.run()
+    report["object"] = job["object"]
     report["wall_s"] = time.perf_counter() - t0
     report["touch"] = loop.touch  # poke | slide; 2D: travel in laps of this contour (tactile_bringup.slide_tables)
     if exp.mode == "2d":
         from tactile_sim.contour import contour_length_m
 
         report["contour_length_m"] = contour_length_m(loop.evaluator.obj)
-    est = loop.estimator.surface_points()
-    report["_shape"] = (est[:, :2].tolist(), loop.true_surface[:, :2].tolist())
+    if job["seed"] == 0:  # the gallery draws seed 0
+        est = loop.estimator.surface_points()
+        report["_shape"] = (est[:, :2].tolist(), loop.true_surface[:, :2].tolist())
     return report
+
+
+def make_jobs(mode: str, objects: Sequence[str], strategies: Sequence[str], seeds: int, touches: int,
+              alpha: Optional[float], params: Sequence[Path], touch: Optional[str]) -> list[dict]:
+    """One job per (object, strategy, seed), carrying its parameter files' text and an
+    object file's bytes (see :func:`_one_run`) and its key in the sweep log."""
+    params_text = [Path(p).read_text() for p in params]
+    jobs = []
+    for o in objects:
+        obj_file = Path(o).read_bytes() if Path(o).is_file() else None
+        for st in strategies:
+            for seed in range(seeds):
+                job = dict(mode=mode, object=o, strategy=st, seed=seed, alpha=alpha, touches=touches,
+                           params=[str(p) for p in params], params_text=params_text, touch=touch,
+                           object_file=obj_file)
+                job["key"] = job_key(job)
+                jobs.append(job)
+    return jobs
 
 
 def _median(values: list) -> Optional[float]:
@@ -359,8 +398,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="seed of the generated suite, ≥ 0 (default 0; the same seed gives the same objects)")
     parser.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated strategies")
     parser.add_argument("--seeds", type=integer, default=5, help="seeds 0..N-1, N ≥ 1 (default 5)")
-    parser.add_argument("--jobs", type=integer, default=os.cpu_count() or 1, help="parallel runs ≥ 1 (default: cores)")
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--jobs", type=integer, default=None,
+                        help="parallel local runs ≥ 1 (default: the cores; not with --cluster)")
+    parser.add_argument("--cluster", default=None, metavar="ADDRESS",
+                        help="run on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of local processes; "
+                             "its workers need this tree installed (docs/benchmarks.md, 'On a cluster')")
+    parser.add_argument("--out", type=Path, required=True,
+                        help="output folder; a sweep started again into it runs only the runs it lacks")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSON",
                         help="no runs: rebuild summary.md and the plots of an earlier runs.json into --out")
     args = parser.parse_args(argv)
@@ -379,46 +423,35 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         touches = args.touches
         if touches is None:
             touches = 30 if args.mode == "2d" else 60
-        jobs = [dict(mode=args.mode, object=o, strategy=s, seed=seed, alpha=args.alpha,
-                     touches=touches, params=[str(p) for p in args.params], touch=args.touch)
-                for o in objects for s in strategies for seed in range(args.seeds)]
+        jobs = make_jobs(args.mode, objects, strategies, args.seeds, touches, args.alpha, args.params, args.touch)
         # Fail fast on bad names before starting the pool.
         Experiment(mode=args.mode, object_name=objects[0], strategy=strategies[0], touches=1,
                    user_params_files=args.params)
         args.out.mkdir(parents=True, exist_ok=True)
-        runs, shapes, t0 = [], [], time.time()
+        log = SweepLog(args.out / LOG_NAME)
+        todo = log.pending(jobs)
+        _say_resume(log, jobs, todo)
+        where = f"the Dask cluster at {cluster_address(args.cluster)}" if args.cluster else \
+            f"{args.jobs or os.cpu_count() or 1} processes"
         print(f"{len(jobs)} runs ({len(objects)} objects × {len(strategies)} strategies × {args.seeds} seeds, "
-              f"{touches} touches) on {args.jobs} processes", file=sys.stderr)
-        # One BLAS thread per run: N runs on N cores with BLAS's own threads on top
-        # oversubscribe the cores and doubled the wall time per run (measured, 3D).
-        # BLAS reads these when it loads, so the workers are spawned, not forked.
-        for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
-        ctx = mp.get_context("spawn")
-        # A run that raises is reported (with the command that repeats it) and the sweep goes on.
-        bar, failures = ProgressBar(len(jobs)), []
-        with ctx.Pool(args.jobs, maxtasksperchild=4) as pool:
-            for report in pool.imap_unordered(partial(guarded, _one_run), jobs):
-                if is_failure(report):
-                    failures.append(report)
-                    bar.update(False, failure_line(report))
-                    continue
-                est, truth = report.pop("_shape")
-                s = report["summary"]
-                if report["seed"] == 0:
-                    shapes.append((f"{report['object']} / {report['strategy']}\nIoU {s['final_iou']:.3f}",
-                                   np.asarray(est), np.asarray(truth)))
-                runs.append(report)
-                bar.update(True, f"{report['object']:>14s} {report['strategy']:>11s} seed {report['seed']}: "
-                           f"IoU {s['final_iou']:.3f}, travel to 0.95 "
-                           f"{'—' if s['travel_to_iou_0.95_m'] is None else format(s['travel_to_iou_0.95_m'], '.2f')} m, "
-                           f"{report['wall_s']:.0f} s")
-        bar.close()
+              f"{touches} touches), {len(todo)} to run on {where}", file=sys.stderr)
+        failures = _run_jobs(todo, log, args) if todo else []
+        if failures is None:  # interrupted
+            print(f"interrupted: {len(log.reports_of(jobs))} of {len(jobs)} runs kept in {log.path}; "
+                  "the same command goes on from there", file=sys.stderr)
+            return 130
         if failures:
             (args.out / "failures.json").write_text(json.dumps(_clean(failures), indent=1))
             print(f"{len(failures)} of {len(jobs)} runs failed (details: {args.out}/failures.json):", file=sys.stderr)
             for f in failures:
                 print(failure_line(f), file=sys.stderr)
+        runs = [dict(r) for r in log.reports_of(jobs)]
+        shapes = []
+        for report in runs:
+            shape = report.pop("_shape", None)
+            if shape is not None:
+                shapes.append((f"{report['object']} / {report['strategy']}\nIoU {report['summary']['final_iou']:.3f}",
+                               np.asarray(shape[0]), np.asarray(shape[1])))
         if not runs:
             print("no run finished: no summary", file=sys.stderr)
             return 1
@@ -432,6 +465,53 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     return run_main(body)
 
 
+def _say_resume(log: SweepLog, jobs: Sequence[dict], todo: Sequence[dict]) -> None:
+    """What an earlier sweep into the same folder left: kept runs, cut lines, other settings."""
+    if log.cut_lines:
+        print(f"{log.path}: {log.cut_lines} unreadable line(s) (cut by a crash?) ignored; "
+              "those runs are made again", file=sys.stderr)
+    kept = len(jobs) - len(todo)
+    if kept:
+        print(f"resuming: {kept} of {len(jobs)} runs already in {log.path} (delete it to make them again)",
+              file=sys.stderr)
+    others = log.others(jobs)
+    if others:
+        print(f"{log.path}: {others} run(s) of other settings left out of this summary", file=sys.stderr)
+
+
+def _run_line(report: dict) -> str:
+    s = report["summary"]
+    t95 = s["travel_to_iou_0.95_m"]
+    return (f"{report['object']:>14s} {report['strategy']:>11s} seed {report['seed']}: IoU {s['final_iou']:.3f}, "
+            f"travel to 0.95 {'—' if t95 is None else format(t95, '.2f')} m, {report['wall_s']:.0f} s")
+
+
+def _run_jobs(todo: Sequence[dict], log: SweepLog, args: argparse.Namespace) -> Optional[list[dict]]:
+    """Run the jobs locally or on the cluster, each result into the log as it comes; the
+    failures (a run that raises is reported with the command that repeats it, and the
+    sweep goes on), or None when interrupted (Ctrl-C)."""
+    if args.cluster:
+        results = dask_cluster(todo, _one_run, args.cluster, on_ready=lambda line: print(line, file=sys.stderr))
+    else:
+        results = local_pool(todo, _one_run, args.jobs or os.cpu_count() or 1)
+    bar, failures = ProgressBar(len(todo)), []
+    try:
+        with contextlib.closing(results):
+            for job, result in results:
+                if is_failure(result):
+                    failures.append(result)
+                    log.add(job["key"], failure=_clean(result))
+                    bar.update(False, failure_line(result))
+                else:
+                    log.add(job["key"], report=_clean(result))
+                    bar.update(True, _run_line(result))
+    except KeyboardInterrupt:
+        return None
+    finally:
+        bar.close()
+    return failures
+
+
 def _check_args(args: argparse.Namespace, objects: Sequence[str], strategies: Sequence[str]) -> None:
     """Every value before the pool starts (one line per problem, exit 2): the counts, each
     strategy against the planner's rule, each object name or file."""
@@ -439,7 +519,15 @@ def _check_args(args: argparse.Namespace, objects: Sequence[str], strategies: Se
 
     from .param_checks import ParamsError, check_cli, param_spec
 
-    errors = [f"--{k} {v}: must be ≥ 1" for k, v in (("seeds", args.seeds), ("jobs", args.jobs)) if v < 1]
+    errors = [f"--{k} {v}: must be ≥ 1" for k, v in (("seeds", args.seeds), ("jobs", args.jobs))
+              if v is not None and v < 1]
+    if args.cluster is not None:
+        if args.jobs is not None:
+            errors.append("--jobs with --cluster: the cluster's workers set how many runs go at once")
+        try:
+            cluster_address(args.cluster)
+        except ValueError as exc:
+            errors.append(str(exc))
     if args.touches is not None and check_cli("--touches", args.touches):
         errors.append(check_cli("--touches", args.touches))
     allowed = param_spec("soc_planner", "strategy").rule.choices

@@ -21,20 +21,27 @@ def job_command(job: dict) -> str:
             "--strategy", str(job["strategy"]), "--seed", str(job["seed"]), "--touches", str(job["touches"])]
     if job.get("alpha") is not None:
         args += ["--alpha", str(job["alpha"])]
+    if job.get("touch") is not None:
+        args += ["--touch", str(job["touch"])]
     for p in job.get("params") or []:
         args += ["--params", str(p)]
     return shlex.join(args)
 
 
+def failure_record(job: dict, exc: BaseException) -> dict[str, Any]:
+    """``{FAILED: True, "job", "command", "error" (first line), "traceback"}`` of a job that raised."""
+    job = {k: v for k, v in job.items() if k not in ("params_text", "object_file")}  # the names say enough
+    return {FAILED: True, "job": job, "command": job_command(job),
+            "error": f"{type(exc).__name__}: {exc}".splitlines()[0],
+            "traceback": "".join(traceback.format_exception(exc))}
+
+
 def guarded(worker: Callable[[dict], dict], job: dict) -> dict[str, Any]:
-    """``worker(job)``, or on any exception a failure record:
-    ``{FAILED: True, "job", "command", "error" (last line), "traceback"}``."""
+    """``worker(job)``, or on any exception its :func:`failure_record`."""
     try:
         return worker(job)
     except Exception as exc:  # noqa: BLE001 - a sweep reports every failure and goes on
-        return {FAILED: True, "job": job, "command": job_command(job),
-                "error": f"{type(exc).__name__}: {exc}".splitlines()[0],
-                "traceback": traceback.format_exc()}
+        return failure_record(job, exc)
 
 
 def is_failure(result: dict) -> bool:
