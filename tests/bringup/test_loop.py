@@ -144,3 +144,7 @@ def test_touches_aborted_again_and_again_end_the_run_after_the_explorers_retries
     assert np.allclose(pokes[0], exp.start_tip_xyz)
     for start, previous_end in zip(pokes[1:], ends):  # re-planned from where the arm stopped
         assert np.array_equal(start, previous_end)
+    # The paths followed before each refusal are the run's travel, though no touch recorded them.
+    followed = sum(np.linalg.norm(np.diff(np.vstack([a, b]), axis=0)) for a, b in zip(pokes, ends))
+    assert report["summary"]["travel_m"] >= followed - 1e-9 > 0
+    assert report["summary"]["time_s"] > 0

@@ -140,7 +140,7 @@ class ExplorationLoop:
                 progress(record)
             stopped = stop_reason(exp, touches) or stopped
         return make_report(exp.object_name, exp.mode, exp.strategy, exp.seed, exp.config_summary(),
-                           touches, prior_iou, stopped)
+                           touches, prior_iou, stopped, travel_m, time_s)
 
 
 def run_exploration(experiment: Experiment, progress: Optional[ProgressFn] = None) -> dict:

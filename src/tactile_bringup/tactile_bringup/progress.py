@@ -204,7 +204,8 @@ class RunRecorder:
 
     def report(self, stopped_because: str) -> dict:
         return make_report(self.exp.object_name, self.exp.mode, self.exp.strategy, self.exp.seed,
-                           self.exp.config_summary(), self.touches, self.prior_iou, stopped_because)
+                           self.exp.config_summary(), self.touches, self.prior_iou, stopped_because,
+                           self.travel_m, self.time_s)
 
     def write(self, stopped_because: str) -> list[str]:
         return write_outputs(self.report(stopped_because), self.estimator, self.evaluator, self.out_dir,

@@ -59,13 +59,18 @@ def auc_travel(touches: Sequence[dict], prior_iou: Optional[float]) -> Optional[
     return float(area)
 
 
-def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_because: str) -> dict:
+def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_because: str,
+              travel_m: Optional[float] = None, time_s: Optional[float] = None) -> dict:
+    """The run's summary. ``travel_m``/``time_s``: the run's totals when it moved after its last
+    recorded touch (aborted or lost touches before it stopped); default: the last touch's."""
+    last_travel_m = touches[-1]["travel_m"] if touches else 0.0
+    last_time_s = touches[-1]["time_s"] if touches else 0.0
     summary: dict[str, Any] = {
         "final_iou": touches[-1]["iou"] if touches else prior_iou,
         "auc_travel": auc_travel(touches, prior_iou),
         "touches": len(touches),
-        "travel_m": touches[-1]["travel_m"] if touches else 0.0,
-        "time_s": touches[-1]["time_s"] if touches else 0.0,
+        "travel_m": max(last_travel_m, travel_m) if travel_m is not None else last_travel_m,
+        "time_s": max(last_time_s, time_s) if time_s is not None else last_time_s,
         "stopped_because": stopped_because,
         "prior_iou": prior_iou,
     }
@@ -80,10 +85,12 @@ def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_becau
 
 
 def make_report(obj: str, mode: str, strategy: str, seed: int, config: dict,
-                touches: list, prior_iou: float, stopped_because: str) -> dict:
+                touches: list, prior_iou: float, stopped_because: str,
+                travel_m: Optional[float] = None, time_s: Optional[float] = None) -> dict:
+    """The report of a run (``travel_m``/``time_s``: its totals, see :func:`summarise`)."""
     return {
         "object": obj, "mode": mode, "strategy": strategy, "seed": seed, "config": config,
-        "touches": touches, "summary": summarise(touches, prior_iou, stopped_because),
+        "touches": touches, "summary": summarise(touches, prior_iou, stopped_because, travel_m, time_s),
     }
 
 
