@@ -137,3 +137,26 @@ def test_bad_cluster_options_are_refused_before_any_run(tmp_path, args, expected
     r = _bench(*SWEEP, "--out", tmp_path / "x", *args)
     assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_files_travel_with_the_jobs_and_an_edited_file_is_another_run(tmp_path):
+    """The report names the user's files (not the run's private copies); a parameter file edited
+    after a sweep makes its runs new ones, the old ones are left out."""
+    obj = tmp_path / "square.csv"
+    obj.write_text("x,y\n0.46,-0.04\n0.54,-0.04\n0.54,0.04\n0.46,0.04\n")
+    params = tmp_path / "mine.yaml"
+    params.write_text("soc_planner:\n  ros__parameters:\n    alpha: 1.0\n")
+    out = tmp_path / "sweep"
+    args = ["--objects", obj, "--strategies", "proposed", "--seeds", "1", "--touches", "2", "--params", params,
+            "--out", out, "--jobs", "1"]
+    r = _bench(*args)
+    assert r.returncode == 0, r.stderr
+    report = json.loads((out / "runs.json").read_text())[0]
+    assert report["object"] == str(obj) and report["config"]["params_files"][-1] == str(params)
+    assert "tactile-run-" not in json.dumps(report)
+    params.write_text("soc_planner:\n  ros__parameters:\n    alpha: 2.0\n")
+    r = _bench(*args)
+    assert r.returncode == 0, r.stderr
+    assert "resuming" not in r.stderr and "1 run(s) of other settings left out" in r.stderr
+    assert json.loads((out / "runs.json").read_text())[0]["config"]["soc_planner"]["alpha"] == 2.0

@@ -53,23 +53,25 @@ def _one_run(job: dict) -> dict:
     runs does not change the runs still to come.
     """
     with tempfile.TemporaryDirectory(prefix="tactile-run-") as tmp:
-        params = job["params"]
+        params, named = job["params"], {}  # named: private copy -> the user's name (for the report)
         if job.get("params_text") is not None:
             params = []
             for i, (path, text) in enumerate(zip(job["params"], job["params_text"])):
                 params.append(Path(tmp) / f"{i}-{Path(path).name}")
                 params[-1].write_text(text)
+                named[str(params[-1])] = str(path)
         obj = job["object"]
         if job.get("object_file") is not None:
             obj = str(Path(tmp) / f"object{Path(obj).suffix}")
             Path(obj).write_bytes(job["object_file"])
+            named[obj] = job["object"]
         exp = Experiment(mode=job["mode"], object_name=obj, strategy=job["strategy"],
                          alpha=job["alpha"], seed=job["seed"], touches=job["touches"],
                          user_params_files=params, touch=job.get("touch"))
         loop = ExplorationLoop(exp)
         t0 = time.perf_counter()
         report = loop.run()
-    report["object"] = job["object"]
+    report = _renamed(report, named)
     report["wall_s"] = time.perf_counter() - t0
     report["touch"] = loop.touch  # poke | slide; 2D: travel in laps of this contour (tactile_bringup.slide_tables)
     if exp.mode == "2d":
@@ -80,6 +82,17 @@ def _one_run(job: dict) -> dict:
         est = loop.estimator.surface_points()
         report["_shape"] = (est[:, :2].tolist(), loop.true_surface[:, :2].tolist())
     return report
+
+
+def _renamed(value, names: dict):
+    """``value`` with every string that is a key of ``names`` replaced by its value (nested)."""
+    if isinstance(value, str):
+        return names.get(value, value)
+    if isinstance(value, dict):
+        return {k: _renamed(v, names) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_renamed(v, names) for v in value)
+    return value
 
 
 def make_jobs(mode: str, objects: Sequence[str], strategies: Sequence[str], seeds: int, touches: int,
@@ -402,7 +415,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="parallel local runs ≥ 1 (default: the cores; not with --cluster)")
     parser.add_argument("--cluster", default=None, metavar="ADDRESS",
                         help="run on the Dask scheduler at ADDRESS (tcp://HOST:PORT) instead of local processes; "
-                             "its workers need this tree installed (docs/benchmarks.md, 'On a cluster')")
+                             "its workers need this tree installed (docs/benchmarks.md, 'Sweeps')")
     parser.add_argument("--out", type=Path, required=True,
                         help="output folder; a sweep started again into it runs only the runs it lacks")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSON",
