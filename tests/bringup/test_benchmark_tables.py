@@ -93,3 +93,16 @@ def test_ratios_are_taken_for_the_modes_default_strategy_when_it_was_run():
     assert default_strategy(two) == "info_travel"  # explore_2d / soc_planner.yaml
     assert default_strategy([{"mode": "3d", "strategy": s} for s in ("info_travel", "proposed")]) == "proposed"
     assert default_strategy([{"mode": "2d", "strategy": "proposed"}]) == DEFAULT_STRATEGY  # not run: the fallback
+
+
+def test_a_run_that_ends_below_its_best_is_counted_with_the_worst_named():
+    runs = [run("gen3d-002-superquadric", "proposed", 0, [0.5, 0.98, 0.965], [1.0, 2.0, 3.0]),  # drop 0.015
+            run("gen3d-002-superquadric", "proposed", 1, [0.5, 0.90, 0.895], [1.0, 2.0, 3.0]),  # drop 0.005
+            run("gen3d-004-compound", "proposed", 0, [0.7, 0.8, 0.75], [1.0, 2.0, 3.0]),  # drop 0.05
+            run("gen3d-004-compound", "uncertainty", 0, [0.7, 0.8, 0.81], [1.0, 2.0, 3.0])]
+    s = runs[0]["summary"]
+    assert s["best_iou_reachable"] == 0.98 and abs(s["drop_from_best_reachable"] - 0.015) < 1e-12
+    table = benchmark.drop_table(runs)
+    assert "| proposed | 3 | 2 | gen3d-004-compound, 0 (0.800 → 0.750) |" in table
+    assert "| uncertainty | 1 | 0 | — |" in table
+    assert "Runs that end worse than they were" in benchmark.reachable_sections(runs)

@@ -337,6 +337,35 @@ def below_target(runs: Sequence[dict], target: float = TARGET_IOU) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: how far the final reachable IoU may fall below the run's best (issue 13's 3D criterion)
+DROP_TOLERANCE = 0.01
+
+
+def _drop(summary: dict) -> Optional[float]:
+    """best − final reachable IoU of one run; None without reachable IoU (or from a report written
+    before the summary carried it)."""
+    return summary.get("drop_from_best_reachable")
+
+
+def drop_table(runs: Sequence[dict], tolerance: float = DROP_TOLERANCE) -> str:
+    """Per strategy: runs whose final reachable IoU ends more than ``tolerance`` below the best the
+    run had reached (more data made the estimate worse), and the worst of them."""
+    lines = [f"| strategy | runs | ending > {tolerance:g} below their best | worst: object, seed (best → final) |",
+             "|---|---|---|---|"]
+    for strat in sorted({r["strategy"] for r in runs}):
+        sel = [r for r in runs if r["strategy"] == strat and _drop(r["summary"]) is not None]
+        if not sel:
+            continue
+        bad = sorted((r for r in sel if _drop(r["summary"]) > tolerance), key=lambda r: -_drop(r["summary"]))
+        worst = "—"
+        if bad:
+            w = bad[0]["summary"]
+            worst = (f"{bad[0]['object']}, {bad[0]['seed']} ({w['best_iou_reachable']:.3f} → "
+                     f"{w['final_iou_reachable']:.3f})")
+        lines.append(f"| {strat} | {len(sel)} | {len(bad)} | {worst} |")
+    return "\n".join(lines) + "\n"
+
+
 def reachable_sections(runs: Sequence[dict]) -> str:
     """The reachable-IoU part of summary.md (empty note for runs without it)."""
     if not has_reachable(runs):
@@ -350,6 +379,8 @@ def reachable_sections(runs: Sequence[dict]) -> str:
             f"{ratio_table(runs, default)}\n"
             f"### Reachable IoU: per family (medians over objects of the medians over seeds)\n\n{family_table(runs)}\n"
             f"### Objects ending below reachable IoU {TARGET_IOU:.2f} (median over seeds)\n\n{below_target(runs)}\n"
+            f"### Runs that end worse than they were (reachable IoU, best seen in the run − final)\n\n"
+            f"{drop_table(runs)}\n"
             f"### Reachable IoU: per object (medians over seeds)\n\n{reachable_object_table(runs)}")
 
 

@@ -10,7 +10,8 @@
      "summary": {"final_iou", "travel_to_iou_0.90_m", "travel_to_iou_0.95_m",
                  "time_to_iou_0.90_s", "time_to_iou_0.95_s", "auc_travel",
                  "final_iou_reachable", "travel_to_iou_reachable_0.90_m", ...,
-                 "time_to_iou_reachable_0.95_s",
+                 "time_to_iou_reachable_0.95_s", "best_iou_reachable",
+                 "drop_from_best_reachable" (best − final: more data made it worse),
                  "touches", "travel_m", "time_s", "stopped_because"}}
 
 ``iou`` is the raw IoU against the true solid; ``iou_reachable`` the IoU
@@ -78,6 +79,11 @@ def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_becau
         summary[f"travel_to_iou_{level:.2f}_m"] = first_reaching(touches, level, "travel_m")
         summary[f"time_to_iou_{level:.2f}_s"] = first_reaching(touches, level, "time_s")
     summary["final_iou_reachable"] = touches[-1].get("iou_reachable") if touches else None
+    # More data should not make the estimate worse: the best reachable IoU seen in the run (after
+    # any touch) and how far the final one lies below it.
+    seen = [t.get("iou_reachable") for t in touches if t.get("iou_reachable") is not None]
+    summary["best_iou_reachable"] = max(seen) if seen else None
+    summary["drop_from_best_reachable"] = (max(seen) - seen[-1]) if seen else None
     for level in IOU_LEVELS:
         summary[f"travel_to_iou_reachable_{level:.2f}_m"] = first_reaching(touches, level, "travel_m", "iou_reachable")
         summary[f"time_to_iou_reachable_{level:.2f}_s"] = first_reaching(touches, level, "time_s", "iou_reachable")
