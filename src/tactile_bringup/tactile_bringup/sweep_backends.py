@@ -9,7 +9,8 @@ A Dask cluster (``tactile-benchmark --cluster tcp://HOST:8786``) is any
 ``distributed`` scheduler whose workers run this project's code in the same
 version: before the first job the workers' code fingerprint (a hash of every
 ``tactile_*`` module) is compared with ours, and a worker with other code stops
-the sweep with one line naming it. Parameter files travel inside the jobs, so
+the sweep with one line naming it (a worker that joins later is not checked:
+start the workers first). Parameter files travel inside the jobs, so
 the workers need no shared disk. Start workers with one thread each and one
 BLAS thread (``OPENBLAS_NUM_THREADS=1 dask worker tcp://HOST:8786 --nthreads 1
 --nworkers N``): a run is single-threaded numpy, and BLAS threads on top of
@@ -113,7 +114,7 @@ def dask_cluster(jobs: Sequence[dict], worker: Callable[[dict], dict], address: 
             raise ClusterError(f"--cluster {address}: worker(s) {', '.join(other)} run other code than this tree "
                                f"(fingerprint {theirs[other[0]]} against {ours}): install this tree on them")
         if on_ready is not None:
-            threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
+            threads = sum(client.nthreads().values())
             on_ready(f"on the Dask cluster at {address}: {len(theirs)} workers, {threads} threads")
         futures = client.map(partial(guarded, worker), list(jobs), pure=False)
         job_of = {f.key: j for f, j in zip(futures, jobs)}
