@@ -341,27 +341,22 @@ def below_target(runs: Sequence[dict], target: float = TARGET_IOU) -> str:
 DROP_TOLERANCE = 0.01
 
 
-def _drop(summary: dict) -> Optional[float]:
-    """best − final reachable IoU of one run; None without reachable IoU (or from a report written
-    before the summary carried it)."""
-    return summary.get("drop_from_best_reachable")
-
-
 def drop_table(runs: Sequence[dict], tolerance: float = DROP_TOLERANCE) -> str:
     """Per strategy: runs whose final reachable IoU ends more than ``tolerance`` below the best the
-    run had reached (more data made the estimate worse), and the worst of them."""
+    run had reached (``drop_from_best_reachable``: more data made the estimate worse), and the
+    worst of them. Runs without it (no reachable IoU, or written before it existed) are left out."""
     lines = [f"| strategy | runs | ending > {tolerance:g} below their best | worst: object, seed (best → final) |",
              "|---|---|---|---|"]
     for strat in sorted({r["strategy"] for r in runs}):
-        sel = [r for r in runs if r["strategy"] == strat and _drop(r["summary"]) is not None]
+        sel = [r for r in runs if r["strategy"] == strat and r["summary"].get("drop_from_best_reachable") is not None]
         if not sel:
             continue
-        bad = sorted((r for r in sel if _drop(r["summary"]) > tolerance), key=lambda r: -_drop(r["summary"]))
+        bad = [r for r in sel if r["summary"]["drop_from_best_reachable"] > tolerance]
         worst = "—"
         if bad:
-            w = bad[0]["summary"]
-            worst = (f"{bad[0]['object']}, {bad[0]['seed']} ({w['best_iou_reachable']:.3f} → "
-                     f"{w['final_iou_reachable']:.3f})")
+            w = max(bad, key=lambda r: r["summary"]["drop_from_best_reachable"])
+            worst = (f"{w['object']}, {w['seed']} ({w['summary']['best_iou_reachable']:.3f} → "
+                     f"{w['summary']['final_iou_reachable']:.3f})")
         lines.append(f"| {strat} | {len(sel)} | {len(bad)} | {worst} |")
     return "\n".join(lines) + "\n"
 
