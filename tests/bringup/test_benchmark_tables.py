@@ -106,3 +106,16 @@ def test_a_run_that_ends_below_its_best_is_counted_with_the_worst_named():
     assert "| proposed | 3 | 2 | gen3d-004-compound, 0 (0.800 → 0.750) |" in table
     assert "| uncertainty | 1 | 0 | — |" in table
     assert "Runs that end worse than they were" in benchmark.reachable_sections(runs)
+
+
+def test_a_sweep_log_summarises_like_its_runs_json(tmp_path):
+    from tactile_bringup.sweep_log import SweepLog
+
+    runs = [run("circle", "proposed", s, [0.5, 0.96], [1.0, 2.0]) for s in range(2)]
+    log = SweepLog(tmp_path / "runs.jsonl")
+    for i, r in enumerate(runs):
+        log.add(f"k{i}", report=dict(r, _shape=[[[0, 0]], [[0, 0]]]))
+    (tmp_path / "runs.json").write_text(json.dumps(runs))
+    assert benchmark.main(["--from-runs", str(tmp_path / "runs.jsonl"), "--out", str(tmp_path / "a")]) == 0
+    assert benchmark.main(["--from-runs", str(tmp_path / "runs.json"), "--out", str(tmp_path / "b")]) == 0
+    assert (tmp_path / "a" / "summary.md").read_text() == (tmp_path / "b" / "summary.md").read_text()

@@ -182,6 +182,32 @@ def test_benchmark_refuses_bad_values_before_any_run(tmp_path, args, expected):
     assert not out.exists()
 
 
+def test_benchmark_refuses_outputs_and_inputs_it_cannot_use(tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("not json\n")
+    bench = BIN / "tactile-benchmark"
+    _refused(_run([bench, "--objects", "circle", "--seeds", "1", "--out", a_file], env=_bare_env()),
+             f"--out {a_file}: is a file")
+    _refused(_run([bench, "--objects", "circle", "--seeds", "1", "--out", a_file / "sub"], env=_bare_env()),
+             f"--out {a_file / 'sub'}: {a_file} is not a folder")
+    _refused(_run([bench, "--from-runs", tmp_path / "none.json", "--out", tmp_path / "o"], env=_bare_env()),
+             f"--from-runs {tmp_path / 'none.json'}: no such file")
+    _refused(_run([bench, "--from-runs", a_file, "--out", tmp_path / "o"], env=_bare_env()),
+             f"--from-runs {a_file}: not a runs.json of tactile-benchmark")
+
+
+def test_explore_offline_refuses_outputs_it_cannot_write_before_the_run(tmp_path):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    offline = BIN / "tactile-explore-offline"
+    for args, expected in (((["--out", a_file]), f"--out {a_file}: is a file"),
+                           ((["--plot", tmp_path]), f"--plot {tmp_path}: is a folder"),
+                           ((["--report", a_file / "r.json"]), f"--report {a_file / 'r.json'}: {a_file} is not a folder"),
+                           ((["--report", "/proc/r.json"]), "--report /proc/r.json: cannot write in /proc")):
+        lines = _refused(_run([offline, "--touches", "1", *args], env=_bare_env()), expected)
+        assert not any(line.startswith("touch") for line in lines)  # refused before the first touch
+
+
 # -- nodes ------------------------------------------------------------------------------------
 @pytest.mark.graph
 def test_a_node_started_directly_refuses_a_bad_value(ros_graph):

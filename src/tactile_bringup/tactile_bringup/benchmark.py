@@ -32,7 +32,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import plots
-from .cli_common import Parser, add_experiment_args, integer, run_main
+from .cli_common import Parser, add_experiment_args, integer, output_problem, run_main
 from .progress_bar import ProgressBar
 from .sweep import failure_line, is_failure
 from .sweep_backends import cluster_address, dask_cluster, local_pool
@@ -445,14 +445,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument("--out", type=Path, required=True,
                         help="output folder; a sweep started again into it runs only the runs it lacks")
     parser.add_argument("--from-runs", type=Path, default=None, metavar="RUNS_JSON",
-                        help="no runs: rebuild summary.md and the plots of an earlier runs.json into --out")
+                        help="no runs: rebuild summary.md and the plots of an earlier runs.json "
+                             "(or a sweep's runs.jsonl) into --out")
     args = parser.parse_args(argv)
 
     def body() -> int:
+        problem = output_problem(args.out, "--out", folder=True)
+        if problem:
+            raise ValueError(problem)
         if args.from_runs:
-            runs = json.loads(args.from_runs.read_text())
-            if not runs:
-                raise ValueError(f"{args.from_runs} holds no runs")
+            runs = load_runs(args.from_runs)
             args.out.mkdir(parents=True, exist_ok=True)
             print(write_summary(runs, args.out, runs[0]["mode"]))
             return 0
@@ -502,6 +504,25 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return 1 if failures else 0
 
     return run_main(body)
+
+
+def load_runs(path: Path) -> list[dict]:
+    """The reports of a ``runs.json`` (a list), or of a sweep log ``runs.jsonl`` (every run it holds)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"--from-runs {path}: no such file")
+    if path.suffix == ".jsonl":
+        runs = list(SweepLog(path).reports.values())
+    else:
+        try:
+            runs = json.loads(path.read_text())
+        except ValueError as exc:
+            raise ValueError(f"--from-runs {path}: not a runs.json of tactile-benchmark ({exc})") from None
+    if not isinstance(runs, list) or not all(isinstance(r, dict) and "summary" in r for r in runs):
+        raise ValueError(f"--from-runs {path}: not a runs.json of tactile-benchmark (a list of reports)")
+    if not runs:
+        raise ValueError(f"--from-runs {path}: holds no runs")
+    return [{k: v for k, v in r.items() if k != "_shape"} for r in runs]
 
 
 def _say_resume(log: SweepLog, jobs: Sequence[dict], todo: Sequence[dict]) -> None:

@@ -10,7 +10,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Callable
+import tempfile
+from pathlib import Path
+from typing import Callable, Optional
 
 from tactile_planner.strategies import STRATEGY_NAMES
 
@@ -67,14 +69,40 @@ def progress_line(record: dict, total: int) -> str:
             f"IoU {record['iou']:.3f}  surface error {err_txt}  decision {record['decision_ms']:5.0f} ms")
 
 
+def output_problem(path: Path, option: str, folder: bool = False) -> Optional[str]:
+    """Why ``path`` cannot be written (None when it can), checked before any work: a file output
+    that is a folder, a folder output that is a file, or a nearest existing parent that is not a
+    folder one can write in (tried with a temporary file; missing folders below it are created
+    when the output is written)."""
+    path = Path(path)
+    if path.exists() and path.is_dir() != folder:
+        return f"{option} {path}: is {'a file' if folder else 'a folder'}"
+    parent = path if folder and path.exists() else path.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{option} {path}: {parent} is not a folder"
+    try:  # a real write (root passes every permission check; a read-only or virtual file system does not)
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as exc:
+        return f"{option} {path}: cannot write in {parent} ({exc.strerror or exc})"
+    return None
+
+
 def run_main(body: Callable[[], int]) -> int:
-    """Run ``body``; bad input ends with a message and status 2, Ctrl-C with 130."""
+    """Run ``body``; bad input ends with a message and status 2, an I/O error with one line and
+    status 1, Ctrl-C with 130."""
     try:
         return body()
     except ValueError as exc:  # one line per problem (a ParamsError may hold several)
         for line in str(exc).splitlines() or [type(exc).__name__]:
             print(f"error: {line}", file=sys.stderr)
         return 2
+    except OSError as exc:  # a disk, a permission, a path that changed under us: no traceback
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
