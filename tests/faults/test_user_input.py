@@ -144,6 +144,14 @@ def test_replay_offline_refuses_an_unknown_parameter(tmp_path):
              "gpis_estimator: unknown parameter 'kernel.lenght_scale_m' (did you mean 'kernel.length_scale_m'?)")
 
 
+
+def test_replay_offline_refuses_an_output_folder_that_is_a_file(tmp_path):
+    bag = tmp_path / "run.mcap"
+    bag.write_bytes(b"")  # never opened: the output is refused first
+    out = tmp_path / "a_file"
+    out.write_text("")
+    _refused(_run([ROOT / "scripts" / "replay.sh", bag, "--offline", "--out", out]), f"--out {out}: is a file")
+
 # -- console scripts, called directly without tactile.env -------------------------------
 def test_explore_offline_runs_from_venv_bin_without_tactile_env(tmp_path):
     report = tmp_path / "report.json"
