@@ -76,7 +76,6 @@ def test_explore_refuses_a_bad_command_line_value(tmp_path, args, expected):
     assert len(lines) == 1
 
 
-# -- values and names in --params files -------------------------------------------
 def test_explore_refuses_a_run_folder_that_is_a_file(tmp_path):
     out = tmp_path / "a_file"
     out.write_text("")
@@ -84,6 +83,7 @@ def test_explore_refuses_a_run_folder_that_is_a_file(tmp_path):
     assert out.read_text() == ""
 
 
+# -- values and names in --params files -------------------------------------------
 def test_explore_refuses_a_bad_value_in_a_params_file(tmp_path):
     f = _params(tmp_path, "soc_planner:\n  ros__parameters:\n    alpha: -2.0\n")
     lines = _refused(_explore(tmp_path, "--params", f), f"{f}: soc_planner.alpha = -2.0: must be ≥ 0")
