@@ -160,3 +160,29 @@ def test_files_travel_with_the_jobs_and_an_edited_file_is_another_run(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "resuming" not in r.stderr and "1 run(s) of other settings left out" in r.stderr
     assert json.loads((out / "runs.json").read_text())[0]["config"]["soc_planner"]["alpha"] == 2.0
+
+
+def test_a_worker_that_dies_with_a_run_is_replaced_and_the_run_made_again(cluster, tmp_path):
+    """The first attempt kills its worker process; the nanny restarts it and Dask runs the job again.
+    A job that kills every worker it lands on ends as a failed run (KilledWorker), not as a stopped sweep.
+    (One job at a time: a worker's death also counts against the jobs queued on it.)"""
+    from tactile_bringup.sweep import is_failure
+    from tactile_bringup.sweep_backends import dask_cluster
+
+    def worker(job: dict) -> dict:  # sent by value (cloudpickle): the workers do not import this module
+        import os
+        from pathlib import Path
+
+        if job["kind"] == "always" or not Path(job["marker"]).exists():
+            Path(job["marker"]).touch()
+            os._exit(1)  # the worker process dies with the run
+        return {"seed": job["seed"]}
+
+    def job(kind: str) -> dict:
+        return dict(kind=kind, marker=str(tmp_path / kind), seed=0, object="circle", strategy="proposed",
+                    mode="2d", touches=1)
+
+    [(_, once)] = list(dask_cluster([job("once")], worker, cluster.scheduler_address))
+    assert once == {"seed": 0}
+    [(_, always)] = list(dask_cluster([job("always")], worker, cluster.scheduler_address))
+    assert is_failure(always) and always["error"].startswith("KilledWorker"), always
