@@ -32,7 +32,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from . import plots
-from .cli_common import Parser, add_experiment_args, integer, output_problem, run_main
+from .cli_common import Parser, add_experiment_args, check_outputs, integer, run_main
 from .progress_bar import ProgressBar
 from .sweep import failure_line, is_failure
 from .sweep_backends import cluster_address, dask_cluster, local_pool
@@ -450,9 +450,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = parser.parse_args(argv)
 
     def body() -> int:
-        problem = output_problem(args.out, "--out", folder=True)
-        if problem:
-            raise ValueError(problem)
+        check_outputs((args.out, "--out", True))
         if args.from_runs:
             runs = load_runs(args.from_runs)
             args.out.mkdir(parents=True, exist_ok=True)

@@ -90,6 +90,15 @@ def output_problem(path: Path, option: str, folder: bool = False) -> Optional[st
     return None
 
 
+
+def check_outputs(*outputs: tuple[Optional[Path], str, bool]) -> None:
+    """Raise ValueError (one line per problem) for any ``(path, option, folder)`` that
+    :func:`output_problem` refuses; a None path is not asked for."""
+    problems = [output_problem(path, option, folder) for path, option, folder in outputs if path is not None]
+    if any(problems):
+        raise ValueError("\n".join(p for p in problems if p))
+
+
 def run_main(body: Callable[[], int]) -> int:
     """Run ``body``; bad input ends with a message and status 2, an I/O error with one line and
     status 1, Ctrl-C with 130."""

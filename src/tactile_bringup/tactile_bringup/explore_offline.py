@@ -24,7 +24,7 @@ from typing import Optional, Sequence
 from tactile_gpis.state import build_estimator, read_state
 
 from . import plots
-from .cli_common import Parser, add_experiment_args, output_problem, progress_line, run_main
+from .cli_common import Parser, add_experiment_args, check_outputs, progress_line, run_main
 from .experiment import Experiment
 from .loop import ExplorationLoop
 from .progress import write_outputs
@@ -52,11 +52,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     report_path = args.report or (args.out / "report.json" if args.out else Path("report.json"))
 
     def body() -> int:
-        outputs = [(args.out, "--out", True), (report_path if (not args.out or args.report) else None, "--report", False),
-                   (args.plot, "--plot", False), (args.shape, "--shape", False)]
-        problems = [output_problem(path, opt, folder) for path, opt, folder in outputs if path is not None]
-        if any(problems):  # before the run, not after it
-            raise ValueError("\n".join(p for p in problems if p))
+        check_outputs((args.out, "--out", True),  # before the run, not after it
+                      (report_path if (not args.out or args.report) else None, "--report", False),
+                      (args.plot, "--plot", False), (args.shape, "--shape", False))
         state = read_state(args.load_state) if args.load_state else None
         mode = args.mode or (str(state["params"].get("mode", "2d")) if state else "2d")
         if state and str(state["params"].get("mode")) != mode:

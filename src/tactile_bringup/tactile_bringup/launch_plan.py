@@ -23,16 +23,14 @@ import time
 from pathlib import Path
 from typing import Optional, Sequence
 
-from .cli_common import Parser, add_experiment_args, finite_float, output_problem, run_main
+from .cli_common import Parser, add_experiment_args, check_outputs, finite_float, run_main
 from .experiment import Experiment
 from .param_checks import ParamsError, check_cli_values, check_files
 
 
 def plan(args: argparse.Namespace) -> int:
     check_cli_values({"--real-time-factor": args.real_time_factor})
-    problem = output_problem(Path(args.out), "--out", folder=True)
-    if problem:
-        raise ValueError(problem)
+    check_outputs((Path(args.out), "--out", True))
     exp = Experiment(mode=args.mode, object_name=args.object, strategy=args.strategy, alpha=args.alpha,
                      seed=args.seed, touches=args.touches, user_params_files=args.params, touch=args.touch)
     if args.rig == "sim":

@@ -32,7 +32,7 @@ from tactile_common.pointcloud import from_pointcloud2
 from tactile_common.stamps import stamp_ns
 
 from .bag_ros import message_class
-from .cli_common import output_problem, run_main
+from .cli_common import check_outputs, run_main
 from .cores import make_planner
 from .experiment import Experiment
 from .player import Recording
@@ -216,9 +216,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     def body() -> int:
         out = args.out or args.bag.parent / "reanalysis"
-        problem = output_problem(out, "--out", folder=True)
-        if problem:  # before the re-analysis, not after it
-            raise ValueError(problem)
+        check_outputs((out, "--out", True))  # before the re-analysis, not after it
         report = reanalyse(args.bag, out, args.params, evaluate=not args.no_evaluate)
         s = report["summary"]
         iou = "n/a" if s["final_iou"] is None else f"{s['final_iou']:.3f}"

@@ -21,7 +21,7 @@ from tactile_common.params_file import node_params
 from tactile_gpis.estimator import PARAMETERS
 from tactile_gpis.state import build_estimator, read_state
 
-from .cli_common import output_problem, run_main
+from .cli_common import check_outputs, run_main
 from .evaluation import Evaluator
 from .experiment import Experiment
 from .progress import write_outputs
@@ -87,9 +87,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     def body() -> int:
         out = args.out or args.state.parent / "reanalysis_state"
-        problem = output_problem(out, "--out", folder=True)
-        if problem:  # before the re-analysis, not after it
-            raise ValueError(problem)
+        check_outputs((out, "--out", True))  # before the re-analysis, not after it
         report = reanalyse_state(args.state, out, args.params, evaluate=not args.no_evaluate)
         s, info = report["summary"], report["loaded_state"]
         iou = "n/a (no ground truth)" if s["final_iou"] is None else f"{s['final_iou']:.3f}"

@@ -53,6 +53,11 @@ def job_key(job: dict) -> str:
     return json.dumps(fields, sort_keys=True, separators=(",", ":"))
 
 
+def _key(job: dict) -> str:
+    """The job's key: the one it carries (``make_jobs`` sets it), else :func:`job_key`."""
+    return job.get("key") or job_key(job)
+
+
 class SweepLog:
     """Append-only JSON-lines record of a sweep's finished runs (see the module docstring).
 
@@ -91,7 +96,7 @@ class SweepLog:
 
     def pending(self, jobs: Iterable[dict]) -> list[dict]:
         """The jobs without a report, in their order."""
-        return [j for j in jobs if not self.done(job_key(j))]
+        return [j for j in jobs if not self.done(_key(j))]
 
     def add(self, key: str, report: Optional[dict] = None, failure: Optional[dict] = None) -> None:
         """Record one finished run (``report``) or failed one (``failure``), synced to disk."""
@@ -117,9 +122,9 @@ class SweepLog:
 
     def reports_of(self, jobs: Iterable[dict]) -> list[dict]:
         """The reports of these jobs that have one (records of other settings left out)."""
-        return [self.reports[k] for k in (job_key(j) for j in jobs) if k in self.reports]
+        return [self.reports[k] for k in map(_key, jobs) if k in self.reports]
 
     def others(self, jobs: Iterable[dict]) -> int:
         """How many reports in the log belong to no job of this sweep."""
-        keys = {job_key(j) for j in jobs}
+        keys = {_key(j) for j in jobs}
         return sum(k not in keys for k in self.reports)
