@@ -46,7 +46,13 @@ def _frame(arm, t_s):
     arm._slide.on_frame(FrameContact(t_s, ContactSense(np.array([0.46, 0.0, 0.06]), np.array([-1.0, 0, 0]), 0.15)))
 
 
-def test_slide_steps_replace_each_other_then_the_estop_stops_it(arm):
+@pytest.mark.parametrize("stream", [True, False])
+def test_slide_steps_replace_each_other_then_the_estop_stops_it(arm, stream):
+    """Streamed steps: the target reached moving at the slide speed, then a stopping tail at rest;
+    rest-ended steps (slide.stream false): one point at rest."""
+    import dataclasses
+
+    arm.cfg = dataclasses.replace(arm.cfg, slide_stream=stream)
     _state(arm, 1.0)
     assert arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig())
     start = arm._slide.start_s
@@ -56,7 +62,12 @@ def test_slide_steps_replace_each_other_then_the_estop_stops_it(arm):
     _frame(arm, start + 0.002)
     arm._slide_tick()
     steps = [m for m in arm.sent if m.points]
-    assert len(steps) == 2 and all(len(m.points) == 1 for m in steps)  # one short replacing point each
+    assert len(steps) == 2 and all(len(m.points) == (2 if stream else 1) for m in steps)  # short, replacing
+    assert all(not any(m.points[-1].velocities) for m in steps)  # each ends at rest
+    if stream:  # moving at the slide speed at the first point: J v = 0.05 m/s along +y
+        J = arm.model.fk_jacobian(np.array(steps[1].points[0].positions))[2][:3]
+        v = J @ np.array(steps[1].points[0].velocities)
+        np.testing.assert_allclose(v, [0.0, SlideServoConfig().slide_speed_mps, 0.0], atol=2e-3)
     t = steps[0].points[0].time_from_start
     assert t.sec == 0 and t.nanosec >= 10_000_000  # at least one tick long: the controller interpolates to it
     arm._on_estop(Bool(data=True))

@@ -15,7 +15,8 @@ from tactile_driver.contact import ContactConfig, ContactDetector
 from tactile_driver.ik import IKSettings, solve_ik
 from tactile_driver.kinematics import ArmModel, home_configuration
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, WorkspaceBox
-from tactile_driver.slide_loop import FrameContact, SlideLoop, servo_step_trajectory
+from tactile_driver.slide_loop import (FrameContact, SlideLoop, servo_step_trajectory, servo_stream_trajectory,
+                                      stopping_trajectory, tick_trajectory)
 from tactile_driver.slide_servo import ContactSense, ContactThinner, SlideServo, SlideServoConfig, SlideStop
 from tactile_driver.taxels import load_layout
 from tactile_driver.touch_executor import TouchExecutor, TouchRequest
@@ -24,6 +25,7 @@ from tactile_driver.trajectory_monitor import TrajectoryMonitor
 from tactile_common.params_file import package_config
 from tactile_sim.sensor_model import SensorModel
 from tactile_sim.slide import simulate_slide
+from tactile_sim.controller import TrajectoryController
 from tactile_sim.touch import simulate_approach
 
 Z = 0.06
@@ -227,6 +229,123 @@ def test_a_servo_step_outside_the_box_is_refused(arm):
     with pytest.raises(OutsideWorkspace):
         servo_step_trajectory(arm.model, arm.limits, arm.box, IKSettings(), arm.q0, None,
                               np.array([0.2, 0.0, Z]), 0.01)
+
+
+def _monitor_ok(arm, traj, q, qd):
+    found = arm.monitor.check(list(arm.model.joint_names), traj.times_s, traj.positions_rad, traj.velocities_rad_s,
+                              q_now=q, qd_now=qd)
+    assert found == [], "\n".join(map(str, found))
+
+
+@pytest.mark.parametrize("qd_scale", [0.0, 0.02, 0.05])  # the slide speed is ~0.03 of the caps
+def test_streamed_steps_reach_the_target_moving_then_stop_within_the_limits(arm, qd_scale):
+    """The velocity-continuous step: through b + v T₁ at the asked tip velocity (J q̇ = v, the
+    finger's orientation held), then at rest a little further on; every segment, from the measured
+    state (position and velocity), within the limits by the independent monitor."""
+    rng = np.random.default_rng(2)
+    tip0, R0 = arm.model.fk(arm.q0)
+    for _ in range(20):
+        qd = qd_scale * rng.uniform(-1, 1, 7) * arm.limits.velocity_rad_s
+        d = rng.normal(size=3)
+        v = 0.05 * d / np.linalg.norm(d)
+        traj = servo_stream_trajectory(arm.model, arm.limits, arm.box, IKSettings(), arm.q0, qd, tip0, v, 0.02)
+        T1 = traj.times_s[0]
+        assert len(traj.times_s) == 2 and T1 >= 0.02
+        _monitor_ok(arm, traj, arm.q0, qd)
+        p1, R1 = arm.model.fk(traj.positions_rad[0])
+        np.testing.assert_allclose(p1, tip0 + T1 * v, atol=1e-6)
+        np.testing.assert_allclose(R1, R0, atol=1e-6)
+        J = arm.model.fk_jacobian(traj.positions_rad[0])[2]
+        np.testing.assert_allclose(J @ traj.velocities_rad_s[0], np.r_[v, 0, 0, 0], atol=1e-9)
+        assert np.all(traj.velocities_rad_s[1] == 0)
+        tail = np.linalg.norm(arm.model.fk(traj.positions_rad[1])[0] - p1)
+        assert tail < 0.003  # stops within a few millimetres of the target
+    if qd_scale == 0.0:  # at the slide speed already: no stretch, and no acceleration on the segment
+        q1, qd1 = traj.positions_rad[0], traj.velocities_rad_s[0]
+        again = servo_stream_trajectory(arm.model, arm.limits, arm.box, IKSettings(), q1, qd1,
+                                        arm.model.fk(q1)[0], v, 0.01)
+        assert again.times_s[0] == pytest.approx(0.01)
+
+
+def test_a_streamed_step_whose_stopping_tail_leaves_the_box_is_refused(arm):
+    q = solve_ik(arm.model, np.array([0.7495, 0.0, Z]), arm.q0, IKSettings()).q
+    J = arm.model.fk_jacobian(q)[2]
+    qd = np.linalg.pinv(J) @ np.r_[0.05, 0, 0, 0, 0, 0]  # already at the slide speed: no stretch
+    with pytest.raises(OutsideWorkspace):  # the target (0.7500) is inside; the tail would cross x = 0.75
+        servo_stream_trajectory(arm.model, arm.limits, arm.box, IKSettings(), q, qd,
+                                np.array([0.7495, 0.0, Z]), np.array([0.05, 0.0, 0.0]), 0.01)
+
+
+def test_a_moving_arm_is_brought_to_rest_within_the_limits(arm):
+    rng = np.random.default_rng(3)
+    assert stopping_trajectory(arm.model, arm.limits, arm.box, arm.q0, np.zeros(7)) is None
+    for _ in range(10):
+        qd = rng.uniform(-0.2, 0.2, 7)
+        stop = stopping_trajectory(arm.model, arm.limits, arm.box, arm.q0, qd)
+        assert stop is not None and np.all(stop.velocities_rad_s == 0)
+        _monitor_ok(arm, stop, arm.q0, qd)
+        dec = np.abs(qd) / stop.times_s[0]  # the Hermite segment decelerates evenly
+        assert np.all(dec <= arm.limits.acceleration_rad_s2) and dec.max() > 0.9 * arm.limits.acceleration_rad_s2.min()
+
+
+class JointRig(FakeRig):
+    """FakeRig whose tip is the forward kinematics of the simulated joint_trajectory_controller
+    (tactile_sim.controller) running the trajectories the commander sends."""
+
+    def __init__(self, obj, model, det, rng, arm, q0, latency):
+        super().__init__(obj, model, det, rng, arm.model.fk(q0)[0], latency=latency)
+        self.arm = arm
+        self.ctrl = TrajectoryController(arm.model.joint_names, q0)
+
+    def at(self, t):
+        q, qd = self.ctrl.state(t)
+        self.tip = self.arm.model.fk(q)[0]
+        return q, qd
+
+
+def run_joint_loop(loop, rig, stream, frame_s=0.005, max_frames=20000):
+    """The commander's slide over the simulated controller: frames every ``frame_s`` (the sensor's
+    200 Hz), ticks when due, each tick's trajectory (tick_trajectory) checked by the monitor from the
+    measured state and run. Returns (stop, slide time (s), tip speeds along the way)."""
+    names = list(rig.arm.model.joint_names)
+    t = loop.start_s
+    for k in range(max_frames):
+        q, qd = rig.at(t)
+        for f in rig.frame(t, k):
+            loop.on_frame(f)
+        if loop.due(t):
+            step = loop.tick(t, rig.tip)
+            if step.stop is not None:
+                return step.stop, t - loop.start_s
+            traj = tick_trajectory(rig.arm.model, rig.arm.limits, rig.arm.box, IKSettings(), q, qd, loop, step, stream)
+            _monitor_ok(rig.arm, traj, q, qd)
+            rig.ctrl.command(t, names, traj.times_s, traj.positions_rad, traj.velocities_rad_s)
+        t += frame_s
+    raise AssertionError("the slide did not stop")
+
+
+@pytest.mark.parametrize("stream", [True, False])
+def test_a_slide_over_the_simulated_controller_keeps_contact_and_streamed_moves_at_the_slide_speed(
+        layout, arm, stream):
+    """Frames two sensor periods late, ticks paced by them (~10–15 ms): streamed steps slide at
+    ≥ 80 % of slide_speed_mps, rest-ended ones far slower; both keep the force band on the circle."""
+    obj, cfg = Disc([0.5, 0.0], 0.04), SlideServoConfig()
+    model, det, rng, app = _approach(obj, layout)
+    q0 = solve_ik(arm.model, app.tip_xyz_at_stop, arm.q0, IKSettings()).q
+    loop = SlideLoop(cfg, np.array([0, -1.0, 0]), 0.08, *BOX, start_s=0.0, planar=True)
+    rig = JointRig(obj, model, det, rng, arm, q0, latency=2)
+    stop, duration_s = run_joint_loop(loop, rig, stream)
+    assert stop is SlideStop.LENGTH
+    speed = loop.progress_m / duration_s
+    if stream:
+        assert speed >= 0.8 * cfg.slide_speed_mps, speed
+    else:
+        assert speed < 0.6 * cfg.slide_speed_mps, speed
+    f = np.array(rig.forces)
+    k = int(np.argmax(f >= cfg.target_force_n * 0.9))
+    assert f[k:].max() <= cfg.max_force_n and np.mean(f[k:] >= cfg.min_force_n) > 0.95
+    P = np.array([fc.sense.point_xyz for fc in loop.published])
+    assert np.abs(obj.sdf(P)).max() < 0.001 and len(P) >= 10
 
 
 # -- the touch cycle of a slide (TouchExecutor over a scripted arm) -------------------------------

@@ -79,7 +79,9 @@ def check_slide_run(out: Path, env: dict) -> None:
                         contacts.append(np.array([point["x"], point["y"]], dtype=float))
             elif conn.topic == topics.JOINT_STATES:
                 index = {n: i for i, n in enumerate(msg.name)}
-                states.append((t_ns, np.array([msg.position[index[n]] for n in names])))
+                qd = np.array([msg.velocity[index[n]] for n in names]) if len(msg.velocity) == len(msg.name) \
+                    else np.zeros(len(names))
+                states.append((t_ns, np.array([msg.position[index[n]] for n in names]), qd))
             else:
                 trajectories.append((t_ns, msg))
     # the contact stream: more contacts than touches, all on the true ellipse (1.5 mm)
@@ -87,12 +89,13 @@ def check_slide_run(out: Path, env: dict) -> None:
     ellipse = make_object("ellipse", mode="2d")
     assert np.abs(ellipse.sdf(np.array(contacts))).max() < 1.5e-3
     # every trajectory within the commander's limits and box. A servo step (first point later than 0)
-    # starts from the arm's state when it arrives, at rest: the recorder takes the 100 Hz joint states
-    # up to a second late on a loaded machine, so the recording cannot say which state the commander
-    # planned from; the step must be safe from at least one state recorded within 1 s of it (the
-    # graph tests of tests/faults check the start strictly, from their own subscription).
+    # starts from the arm's state when it arrives, moving (a streamed step continues the motion): the
+    # recorder takes the 100 Hz joint states up to a second late on a loaded machine, so the recording
+    # cannot say which state the commander planned from; the step must be safe from at least one state
+    # (position and velocity) recorded within 1 s of it (the graph tests of tests/faults check the
+    # start strictly, from their own subscription).
     steps = 0
-    state_t = np.array([t for t, _ in states])
+    state_t = np.array([t for t, _, _ in states])
     probe = _monitor(out)
     for t_ns, msg in trajectories:
         if not msg.points:
@@ -108,16 +111,16 @@ def check_slide_run(out: Path, env: dict) -> None:
         near_idx = np.flatnonzero(gap_ns <= 1e9)
         # nearest first: the state it was planned from is usually among the closest, so the search ends
         # after a few checks instead of trying the states of a second earlier one by one (minutes per run)
-        near = [states[k][1] for k in near_idx[np.argsort(gap_ns[near_idx], kind="stable")]]
+        near = [states[k][1:] for k in near_idx[np.argsort(gap_ns[near_idx], kind="stable")]]
         found = None
-        for q_now in near:
-            found = probe.check(msg.joint_names, times, q, qd, q_now=q_now)
+        for q_now, qd_now in near:
+            found = probe.check(msg.joint_names, times, q, qd, q_now=q_now, qd_now=qd_now)
             if not found:
                 break
         probe.violations.clear()
         if found is None or found:  # no state near it, or unsafe from every one: a violation
             k = int(np.searchsorted(state_t, t_ns, side="right")) - 1
-            monitor.check(msg.joint_names, times, q, qd, q_now=states[max(k, 0)][1])
+            monitor.check(msg.joint_names, times, q, qd, q_now=states[max(k, 0)][1], qd_now=states[max(k, 0)][2])
     assert monitor.violations == [], "\n".join(map(str, monitor.violations[:10]))
     assert steps > 10, "the slides were driven by short replacing trajectories"
 

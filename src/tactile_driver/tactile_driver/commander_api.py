@@ -55,7 +55,7 @@ from tactile_driver.contact import back_off_target
 from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog
-from tactile_driver.slide_loop import FrameContact, SlideLoop, servo_step_trajectory
+from tactile_driver.slide_loop import FrameContact, SlideLoop, stopping_trajectory, tick_trajectory
 from tactile_driver.slide_servo import ContactSense, SlideServoConfig
 from tactile_driver.trajectory import TimedTrajectory, TrajectoryError
 
@@ -108,6 +108,7 @@ class CommanderConfig:
     publish_fingertip_pose: bool = True
     planar: bool = False  # 2D rig: slides stay in the x-y plane
     slide_max_contact_age_s: float = 0.25  # a slide's latest contact frame older than this: no contact
+    slide_stream: bool = True  # velocity-continuous servo steps (slide_loop.servo_stream_trajectory)
 
 
 @dataclass
@@ -159,6 +160,7 @@ class ArmCommander:
         self._on_state = on_state
         self._slide: Optional[SlideLoop] = None
         self._slide_timer = None
+        self._slide_stopping: Optional[tuple[float, str]] = None  # (rest by, s; why the servo stopped)
         self.qd: Optional[np.ndarray] = None  # measured joint velocities (None if not sent)
         self._own_contact_ns: set[int] = set()  # stamps of the slide contacts this commander published
         #: called with each FrameContact of a slide's thinned stream (the node publishes it)
@@ -298,22 +300,39 @@ class ArmCommander:
             return
         self._flush_slide_contacts()
         now = self.now_s()
+        if self._slide_stopping is not None:  # the servo stopped: the arm comes to rest, then the slide ends
+            until_s, reason = self._slide_stopping
+            if now >= until_s - 1e-9:
+                self._end_slide(TaskResult.SUCCEEDED, reason)
+            return
         if not loop.due(now) or self.q is None:
             return
         step = loop.tick(now, self.tip_xyz)
+        if step.stop is not None:
+            reason = f"slide stopped: {step.stop.value}, {loop.slid_m:.3f} m"
+            stop = stopping_trajectory(self.model, self.limits, self.box, self.q, self.qd)
+            if stop is None:  # at rest already (or no room to slow down): stop here
+                return self._end_slide(TaskResult.SUCCEEDED, reason)
+            self._send_servo(task, stop)
+            self._slide_stopping = (now + stop.duration_s, reason)
+            return
         if step.target_xyz is not None:
             try:
-                traj = servo_step_trajectory(self.model, self.limits, self.box, self.ik, self.q, self.qd,
-                                             step.target_xyz, loop.period_s, self.cfg.max_joint_step_rad)
+                traj = self._servo_trajectory(loop, step)
             except (OutsideWorkspace, TrajectoryError) as exc:
                 loop.abort()
                 return self._end_slide(TaskResult.ABORTED, f"servo step: {exc}")
-            msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)
-            self._pub_planned.publish(msg)
-            self._pub_traj.publish(msg)  # stamp 0: replaces the running one on receipt
-            task.traj = traj
-        if step.stop is not None:
-            self._end_slide(TaskResult.SUCCEEDED, f"slide stopped: {step.stop.value}, {loop.slid_m:.3f} m")
+            self._send_servo(task, traj)
+
+    def _servo_trajectory(self, loop: SlideLoop, step) -> TimedTrajectory:
+        return tick_trajectory(self.model, self.limits, self.box, self.ik, self.q, self.qd, loop, step,
+                               self.cfg.slide_stream, self.cfg.max_joint_step_rad)
+
+    def _send_servo(self, task: _Task, traj: TimedTrajectory) -> None:
+        msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)
+        self._pub_planned.publish(msg)
+        self._pub_traj.publish(msg)  # stamp 0: replaces the running one on receipt
+        task.traj = traj
 
     def _flush_slide_contacts(self) -> None:
         if self._slide is not None:
@@ -333,6 +352,7 @@ class ArmCommander:
     def _close_slide(self, task: _Task) -> None:
         """The slide task ends (any reason): stop its timer, close and hand out its stream."""
         loop, self._slide = self._slide, None
+        self._slide_stopping = None
         if self._slide_timer is not None:
             self.node.destroy_timer(self._slide_timer)
             self._slide_timer = None

@@ -63,6 +63,9 @@ SLIDE_PARAMS = {
                                "surface before a slide", {"gt": 0.0}),
     "slide.max_contact_age_s": (0.25, "slide: a contact frame older than this (node clock) is no contact "
                                 "(a silent driver stops the slide)", {"gt": 0.0}),
+    "slide.stream": (True, "slide: velocity-continuous servo steps (each tick's trajectory reaches its target "
+                     "moving at the slide speed, then a stopping tail; the next tick replaces it), so the "
+                     "finger slides at slide_speed_mps; false: rest-ended steps (slower, docs/arm.md)"),
 }
 PARAMS = {
     "urdf_path": (_D.urdf_path, "URDF of the arm; '' = Franka Panda from example-robot-data"),

@@ -119,10 +119,13 @@ class ContactSense:
 
 @dataclass(frozen=True)
 class SlideStep:
-    """The servo's answer for one tick: the next tip target (None once stopped) and why it stopped."""
+    """The servo's answer for one tick: the next tip target (None once stopped), why it stopped, and
+    the tangent step in it (``step_m`` along ``tangent_xyz``; 0 while the contact is regained)."""
 
     target_xyz: Optional[np.ndarray]
     stop: Optional[SlideStop] = None
+    step_m: float = 0.0
+    tangent_xyz: Optional[np.ndarray] = None
 
 
 def _unit(v: np.ndarray) -> Optional[np.ndarray]:
@@ -215,15 +218,15 @@ class SlideServo:
         else:
             correction = float(np.clip(cfg.gain_m_per_n * (cfg.target_force_n - force),
                                        -cfg.max_correction_m, cfg.max_correction_m))
-        step = 0.0 if weak else min(cfg.step_m, self.length_m - self.slid_m)
+        step = 0.0 if weak else max(0.0, min(cfg.step_m, self.length_m - self.slid_m))
         target = tip + step * self.tangent - correction * n
         if np.any(target < self.box_min) or np.any(target > self.box_max):
             return self._stop(SlideStop.BOX)
         self.slid_m += step
         if self.slid_m >= self.length_m - 1e-12:
             self.stopped = SlideStop.LENGTH
-            return SlideStep(target, SlideStop.LENGTH)
-        return SlideStep(target)
+            return SlideStep(target, SlideStop.LENGTH, step, self.tangent.copy())
+        return SlideStep(target, None, step, self.tangent.copy())
 
     def _stop(self, why: SlideStop) -> SlideStep:
         self.stopped = why

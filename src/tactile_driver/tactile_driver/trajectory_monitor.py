@@ -22,7 +22,9 @@ scipy, not with the planner's code:
   monitor of the commander uses that (``commander_monitor`` in the tests).
 - a first point at ``time_from_start`` 0 must equal the measured state
   (within ``start_tolerance_rad``): the controller would jump to it; a later
-  first point makes the measured state (at rest) the first knot.
+  first point makes the measured state the first knot, at rest or, when the
+  measured velocity is given, moving at it (a replacing trajectory sent while
+  the arm moves: the controller interpolates from its current state).
 - an empty trajectory (stop and hold) is always safe; positions without
   velocities (linear interpolation: an unbounded acceleration at every
   knot) and malformed messages are violations.
@@ -88,7 +90,7 @@ class TrajectoryMonitor:
         return cls(model, limits, box, **kwargs)
 
     def check(self, joint_names: Sequence[str], times_s: Sequence[float], positions_rad, velocities_rad_s=None,
-              q_now: Optional[np.ndarray] = None) -> list[Violation]:
+              q_now: Optional[np.ndarray] = None, qd_now: Optional[np.ndarray] = None) -> list[Violation]:
         """Violations of one trajectory (empty: safe); also appended to :attr:`violations`.
 
         Args:
@@ -97,14 +99,15 @@ class TrajectoryMonitor:
             positions_rad: (K, n) positions in ``joint_names`` order.
             velocities_rad_s: (K, n), or None / empty for positions-only points.
             q_now: the measured joints (model order) when the trajectory was sent, if known.
+            qd_now: the measured joint velocities then (model order); None: at rest.
         """
-        found = self._check(list(joint_names), times_s, positions_rad, velocities_rad_s, q_now)
+        found = self._check(list(joint_names), times_s, positions_rad, velocities_rad_s, q_now, qd_now)
         self.checked += 1
         self.violations.extend(found)
         return found
 
     # -- internals -------------------------------------------------------------
-    def _check(self, names, times_s, positions, velocities, q_now) -> list[Violation]:
+    def _check(self, names, times_s, positions, velocities, q_now, qd_now=None) -> list[Violation]:
         t = np.asarray(times_s, dtype=float).reshape(-1)
         if len(t) == 0:
             return []  # stop and hold
@@ -136,9 +139,10 @@ class TrajectoryMonitor:
                 if jump[j] > self.start_tolerance_rad:
                     out.append(Violation("start", self.model.joint_names[j], 0.0, float(jump[j]),
                                          self.start_tolerance_rad, "rad from the measured state"))
-            else:  # the controller starts from the measured state, at rest
+            else:  # the controller starts from the measured state (at rest unless its velocity is given)
                 t, q = np.r_[0.0, t], np.vstack([q_now[None], q])
-                qd = np.vstack([np.zeros((1, nq)), qd]) if qd is not None else None
+                v0 = np.zeros((1, nq)) if qd_now is None else np.asarray(qd_now, dtype=float).reshape(1, nq)
+                qd = np.vstack([v0, qd]) if qd is not None else None
         if len(t) == 1:
             return out + self._positions(t, q) + self._workspace(t, q)
         if qd is None:
