@@ -384,9 +384,7 @@ def tick_trajectory(model: ArmModel, limits: MotionLimits, box: WorkspaceBox, ik
     """
     if stream and step.step_m > 0 and step.tangent_xyz is not None:
         speed, horizon = loop.config.slide_speed_mps, loop.horizon_s
-        tip = model.fk(np.asarray(q_now, dtype=float))[0]
-        correction = step.target_xyz - step.step_m * step.tangent_xyz - tip  # the servo's, per period
-        base = tip + (horizon / loop.period_s) * correction  # per second as the servo's: over the horizon
+        base = step.target_xyz - step.step_m * step.tangent_xyz  # the tip plus the servo's normal correction
         # The surface turns while the arm moves on what was sensed a tick ago: head along the chord to where
         # the tangent will be, s = v (lag + T₁/2) on (the lag ≈ one tick: ticks wait for a fresh frame).
         n = loop.servo.normal
