@@ -346,6 +346,8 @@ def test_a_slide_over_the_simulated_controller_keeps_contact_and_streamed_moves_
     assert f[k:].max() <= cfg.max_force_n and np.mean(f[k:] >= cfg.min_force_n) > 0.95
     P = np.array([fc.sense.point_xyz for fc in loop.published])
     assert np.abs(obj.sdf(P)).max() < 0.001 and len(P) >= 10
+    # the sensed tangent turns by 1 / (disc radius + tip radius) per metre the tip centre slides
+    assert loop.curvature_per_m == pytest.approx(1.0 / (0.04 + layout.tip_radius_m), rel=0.25)
 
 
 # -- the touch cycle of a slide (TouchExecutor over a scripted arm) -------------------------------

@@ -24,9 +24,7 @@ closed loop over topics:
     the surface): the target where the tip will be at the slide speed one
     tick interval on, reached moving at that speed, then a stopping tail to
     rest; the arm runs at the slide speed, each segment within the limits
-    from the measured state; the servo's normal correction is scaled from
-    per period to the tick interval, and the direction turned by the
-    surface's curvature (estimated from the sensed tangent's turn per metre,
+    from the measured state; the direction is turned by the surface's curvature (estimated from the sensed tangent's turn per metre,
     :attr:`SlideLoop.curvature_per_m`) over the tick's lag;
   - rest-ended (:func:`servo_step_trajectory`: while the contact is
     regained, or with ``stream`` off): one point, the IK of the target at
