@@ -79,3 +79,34 @@ def test_a_free_space_point_deep_inside_a_confident_estimate_pins_f_at_the_value
     # force the extreme: a prediction with μ = −1 m and s = 1 µm at the point
     est._model = lambda: type("P", (), {"predict": staticmethod(lambda q: (np.array([-1.0]), np.array([1e-12])))})()
     assert est._free_space_row(a[:2], 1e-4) == (A, est.contact_var)
+
+
+@pytest.mark.parametrize("x", [(0.5, 0.0), (0.5, -0.04), (0.47, 0.05)])
+def test_the_mode_posterior_lifts_the_point_to_the_bound_and_no_farther(x):
+    """free_space.posterior 'mode': the posterior at x has the truncated prediction's mode max(μ, a)
+    and its variance (scipy's truncnorm), so a miss never lifts the estimate past the bound."""
+    est = _est(**{"free_space.posterior": "mode"})
+    q = np.array([x])
+    mu, s2 = (float(v[0]) for v in est.predict(q))
+    assert mu < A
+    ok, why = est.add_observation(np.array([*x, 0.06]), None, 0)
+    assert ok and why == ""
+    m_after, v_after = (float(v[0]) for v in est.predict(q))
+    ref = truncnorm((A - mu) / np.sqrt(s2), np.inf, loc=mu, scale=np.sqrt(s2))
+    if ref.var() >= 1e-6 ** 2 * 4:
+        assert m_after == pytest.approx(A, rel=1e-4)
+        assert v_after == pytest.approx(ref.var(), rel=1e-4)
+    assert A - 1e-6 <= m_after < ref.mean()
+
+
+def test_one_miss_before_any_contact_keeps_the_prior_with_the_mode_and_erases_it_with_the_mean():
+    """The known issue of docs/gpis.md: on the thin-plate prior (s ≈ 0.28 m) one miss inside the prior
+    circle lifts the mean at its centre above zero with 'mean'; with 'mode' the centre stays inside."""
+    centre = np.array([[0.5, 0.0]])
+    lifted = {}
+    for posterior in ("mean", "mode"):
+        est = ShapeEstimator.from_params({"mode": "2d", "free_space.posterior": posterior})
+        assert float(est.predict(centre)[0][0]) < -0.05  # the auto prior: a 7.5 cm circle at the centre
+        assert est.add_observation(np.array([0.555, 0.0, 0.06]), None, 0)[0]
+        lifted[posterior] = float(est.predict(centre)[0][0])
+    assert lifted["mean"] > 0.0 and lifted["mode"] < -0.02, lifted
