@@ -7,6 +7,7 @@ from tactile_bringup.exploration_cycle import CycleConfig, ExplorationCycle, Pha
 from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, TouchReport
 
 START = np.array([0.33, 0.0, 0.06])
+MISS = np.ones(1)  # the fake observation of a touch that met nothing
 
 
 class FakeRun:
@@ -14,7 +15,9 @@ class FakeRun:
         self.budget, self.touches, self.travel, self.written = touches, [], [], None
 
     def add_touch(self, goal, observation, travel_m, time_s, decision_ms, path_xyz=None):
-        self.touches.append((goal, observation, travel_m, decision_ms))
+        """A record as RunRecorder's: ``contact`` None for a miss (the observation MISS)."""
+        self.touches.append({"index": len(self.touches), "contact": None if observation is MISS else observation,
+                             "travel_m": travel_m, "decision_ms": decision_ms})
         return {"index": len(self.touches) - 1}
 
     def add_travel(self, travel_m, time_s):
@@ -55,10 +58,10 @@ class Rig:
         goal_ns = self.sent[-1].request_id if goal_ns is None else goal_ns
         self.cycle.on_report(TouchReport(goal_ns, outcome, "", obs_ns, 0.1, 2.0))
 
-    def touch(self, obs_ns):
+    def touch(self, obs_ns, contact=True):
         self.answer()
-        self.cycle.on_observation(obs_ns, np.zeros(1))
-        self.report(obs_ns=obs_ns)
+        self.cycle.on_observation(obs_ns, np.zeros(1) if contact else MISS)
+        self.report(TouchOutcome.CONTACT if contact else TouchOutcome.FREE_SPACE, obs_ns=obs_ns)
 
 
 def test_first_request_waits_for_the_tip_at_the_start():
@@ -81,6 +84,17 @@ def test_a_run_of_touches_asks_for_maps_with_each_observation_and_stops_at_the_b
     ids = [q.request_id for q in r.sent]
     assert ids == sorted(set(ids))  # unique and increasing
     assert r.cycle.finished and r.run.written == "touch budget" and r.cycle.exit_status == 0
+
+
+def test_requests_count_the_misses_until_the_first_contact():
+    """The planner's search_after_misses needs the run's misses before any contact, also after a
+    restart (it keeps no state): each request carries them, 0 from the first contact on."""
+    r = Rig(touches=5)
+    r.cycle.on_tip(START)
+    for obs, contact in ((1, False), (2, False), (3, True), (4, False)):
+        r.touch(obs, contact)
+    assert [q.misses_before_contact for q in r.sent] == [0, 1, 2, 0, 0]
+    assert PlanRequest.from_values(r.sent[2].values()) == r.sent[2]  # it travels in the message
 
 
 def test_ids_stay_strictly_increasing_when_the_clock_does_not_move():

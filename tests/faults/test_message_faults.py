@@ -174,9 +174,10 @@ def test_planner_rejects_bad_maps_tips_and_requests_and_plans_on_the_last_good_m
         pub_tip.publish(tip)
         assert pub_tip.wait_for_all_acked(Duration(seconds=20))
         n_bad += 1
-    # bad requests: no id, a non-numeric stamp, a start that is not 3 finite numbers
+    # bad requests: no id, a non-numeric stamp, a start that is not 3 finite numbers, a negative count
     for values in ({"min_map_stamp_ns": "0"}, {"request_id": "5", "min_map_stamp_ns": "soon"},
-                   {"request_id": "6", "start_xyz_m": "0.4,nan,0.06"}, {"request_id": "6", "start_xyz_m": "1,2"}):
+                   {"request_id": "6", "start_xyz_m": "0.4,nan,0.06"}, {"request_id": "6", "start_xyz_m": "1,2"},
+                   {"request_id": "7", "misses_before_contact": "-1"}):
         pub_req.publish(DiagnosticStatus(name="request", values=[KeyValue(key=k, value=v)
                                                                  for k, v in values.items()]))
         n_bad += 1

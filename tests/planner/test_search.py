@@ -177,3 +177,40 @@ def test_a_lost_object_is_searched_where_most_probable_then_ring_by_ring_each_sp
     for _ in range(first_ring):
         off.plan(m, tip)
     assert not off.plan(m, tip).ok  # without the rings the search ends where the probable region does
+
+
+def _prior_lattice(n: int = 64) -> MapLattice:
+    """A 2D lattice that still holds the prior: a disc of radius 0.075 m at the workspace centre."""
+    ax = (np.linspace(0.35, 0.65, n), np.linspace(-0.15, 0.15, n))
+    X, Y = np.meshgrid(*ax, indexing="ij")
+    d = np.hypot(X - 0.5, Y)
+    return MapLattice(axes=ax, mean_m=d - 0.075, variance_m2=np.full(X.shape, 0.01), plane_z_m=0.06)
+
+
+def _with_candidates(lattice: MapLattice, k: int = 24) -> np.ndarray:
+    """The map of ``lattice`` plus k candidates on the disc's circle (outward normals)."""
+    from tactile_common.fields import KIND_CANDIDATE
+
+    a = np.linspace(0.0, 2 * np.pi, k, endpoint=False)
+    c = np.zeros(k, dtype=VARIANCE_MAP_DTYPE)
+    c["x"], c["y"], c["z"] = 0.5 + 0.075 * np.cos(a), 0.075 * np.sin(a), 0.06
+    c["normal_x"], c["normal_y"] = np.cos(a), np.sin(a)
+    c["variance"], c["kind"] = 0.01, KIND_CANDIDATE
+    return np.concatenate([_as_map(lattice), c])
+
+
+@pytest.mark.parametrize("after, misses, ring", [(3, 3, True), (3, 5, True), (3, 2, False), (0, 9, False)])
+def test_misses_before_any_contact_start_the_coverage_rings_on_a_prior_with_a_surface(after, misses, ring):
+    """search_after_misses: a prior that touches keep refuting is not searched along (its surface
+    is a guess): from the k-th miss with no contact yet the planner covers the workspace with rings."""
+    params = dict(load_params(str(CONFIG)), strategy="info_travel", search_after_misses=after)
+    m = _with_candidates(_prior_lattice())
+    assert len(parse_variance_map(m)[1]) == 24
+    res = TouchPlanner.from_params(params, seed=1).plan(m, np.array([0.38, -0.12, 0.06]),
+                                                        misses_before_contact=misses)
+    assert res.ok, res.message
+    assert ("coverage ring" in res.message) is ring, res.message
+    if ring:
+        assert f"{misses} touches met nothing" in res.message
+    else:  # one of the disc's candidates
+        assert abs(np.hypot(res.target_xyz[0] - 0.5, res.target_xyz[1]) - 0.075) < 1e-6

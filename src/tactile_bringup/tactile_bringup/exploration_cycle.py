@@ -48,6 +48,7 @@ import numpy as np
 
 from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, TouchReport
 
+from .progress import misses_before_contact
 from .slide_stream import graph_slide, is_stream
 
 
@@ -240,7 +241,8 @@ class ExplorationCycle:
         request_id = max(int(self._next_id()), self._last_id + 1)
         self._last_id = request_id
         history = (tuple(self._targets.values()), tuple(self._excluded)) if self._history_known else (None, None)
-        self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history)
+        self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history,
+                                   misses_before_contact(self.run.touches))
         self.goal_stamp_ns, self.report = None, None
         self._enter(Phase.PLANNING)
         self._publish()

@@ -26,7 +26,7 @@ from .evaluation import Evaluator
 from .exploration_cycle import CycleConfig
 from .experiment import Experiment
 from .motion import MotionModel, polyline_length_m
-from .progress import observe, stop_reason, touch_record
+from .progress import misses_before_contact, observe, stop_reason, touch_record
 from .report import make_report
 from .rig_touch import RigFinger
 from .sensing import SimulatedFinger
@@ -70,7 +70,8 @@ class ExplorationLoop:
         unreachable_in_row = aborts_in_row = 0
         while stop_reason(exp, touches) is None:
             t0 = time.perf_counter()
-            plan = self.planner.plan(self.estimator.map_array(), tip, np.array(excluded).reshape(-1, 3))
+            plan = self.planner.plan(self.estimator.map_array(), tip, np.array(excluded).reshape(-1, 3),
+                                     misses_before_contact=misses_before_contact(touches))
             plan_ms = (time.perf_counter() - t0) * 1e3  # map extraction + planning
             if not plan.ok:
                 stopped = f"planner: {plan.status}: {plan.message}"

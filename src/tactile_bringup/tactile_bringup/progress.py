@@ -107,6 +107,12 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
     }
 
 
+def misses_before_contact(touches: Sequence[dict]) -> int:
+    """How many touch records met nothing while none has met the object yet (0 after the first
+    contact): the plan request's ``misses_before_contact``, the same offline and on the graph."""
+    return 0 if any(record.get("contact") is not None for record in touches) else len(touches)
+
+
 def stop_reason(experiment, touches: list) -> Optional[str]:
     """Why the run stops after these touches (None: go on)."""
     if len(touches) >= experiment.touches:

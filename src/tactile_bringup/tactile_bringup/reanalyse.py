@@ -37,7 +37,7 @@ from .cores import make_planner
 from .experiment import Experiment
 from .player import Recording
 from .slide_stream import graph_slide, is_stream, report_of
-from .progress import RunRecorder, observe_record, write_outputs
+from .progress import RunRecorder, misses_before_contact, observe_record, write_outputs
 
 
 def run_params_files(bag: Path) -> list[Path]:
@@ -174,7 +174,8 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                     if req is not None:
                         excluded, visited = (None if h is None else np.array(h, dtype=float).reshape(-1, 3)
                                              for h in (req.excluded_xyz_m, req.visited_xyz_m))
-                    plan = planner.plan(run.estimator.map_array(), tip, excluded, visited) \
+                    misses = req.misses_before_contact if req is not None else misses_before_contact(run.touches)
+                    plan = planner.plan(run.estimator.map_array(), tip, excluded, visited, misses) \
                         if planner is not None else None
                     used.add(obs_ns)
                     taken.append(observations[obs_ns])

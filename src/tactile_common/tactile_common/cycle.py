@@ -109,7 +109,9 @@ class PlanRequest:
     ``visited_xyz_m``: the targets of this run's earlier goals, in order;
     ``excluded_xyz_m``: those reported unreachable (world, m). With them the
     answer is a function of the request and the map alone. None: not told
-    (the planner uses what it remembers).
+    (the planner uses what it remembers). ``misses_before_contact``: how many
+    touches met nothing while none has met the object yet (0 after the first
+    contact; the planner's ``search_after_misses``).
     """
 
     request_id: int
@@ -117,10 +119,12 @@ class PlanRequest:
     start_xyz_m: Optional[tuple] = None
     visited_xyz_m: Optional[tuple] = None
     excluded_xyz_m: Optional[tuple] = None
+    misses_before_contact: int = 0
 
     def values(self) -> dict:
         out = {"request_id": str(self.request_id), "min_map_stamp_ns": str(self.min_map_stamp_ns),
-               "start_xyz_m": xyz_text(self.start_xyz_m)}
+               "start_xyz_m": xyz_text(self.start_xyz_m),
+               "misses_before_contact": str(self.misses_before_contact)}
         for key in ("visited_xyz_m", "excluded_xyz_m"):
             text = _xyz_list_text(getattr(self, key))
             if text is not None:
@@ -132,8 +136,11 @@ class PlanRequest:
         request_id = _int(values, "request_id", -1)
         if request_id < 0:
             raise ValueError("a plan request needs a non-negative request_id")
+        misses = _int(values, "misses_before_contact", 0)
+        if misses < 0:
+            raise ValueError(f"misses_before_contact must be >= 0, got {misses}")
         return cls(request_id, _int(values, "min_map_stamp_ns"), _xyz(values, "start_xyz_m"),
-                   _xyz_list(values, "visited_xyz_m"), _xyz_list(values, "excluded_xyz_m"))
+                   _xyz_list(values, "visited_xyz_m"), _xyz_list(values, "excluded_xyz_m"), misses)
 
 
 @dataclass(frozen=True)

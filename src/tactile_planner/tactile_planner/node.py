@@ -155,7 +155,8 @@ class SocPlannerNode(Node):
         # The request's history when it carries one (a restarted planner decides as before), else our memory.
         excluded = req.excluded_xyz_m if req.excluded_xyz_m is not None else list(self.excluded.values())
         visited = None if req.visited_xyz_m is None else np.array(req.visited_xyz_m, dtype=float).reshape(-1, 3)
-        res = self.planner.plan(self.map, start, np.array(excluded, dtype=float).reshape(-1, 3), visited)
+        res = self.planner.plan(self.map, start, np.array(excluded, dtype=float).reshape(-1, 3), visited,
+                                req.misses_before_contact)
         stamp = time_from_ns(req.request_id)  # the goal's id: the request it answers
         goal = path = None
         if res.ok:

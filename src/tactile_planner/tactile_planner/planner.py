@@ -62,6 +62,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "search_rings_first": (False, "a lost object: the coverage rings before the probability search (the 3D "
                            "default, with equality free-space observations: the probability search then follows "
                            "the kernel's extrapolation; docs/planner.md)"),
+    "search_after_misses": (0, "also search for a lost object, coverage rings first, once this many touches "
+                            "have met nothing and none has met the object yet (the request's "
+                            "misses_before_contact): the estimate is still the prior, and the touches refute it "
+                            "(0 = only when no estimated surface is left)", {"ge": 0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -193,19 +197,21 @@ class TouchPlanner:
     # ------------------------------------------------------------------
     def plan(self, map_array: np.ndarray, tip_xyz: np.ndarray,
              excluded_targets: np.ndarray | None = None,
-             visited_targets: np.ndarray | None = None) -> PlanResult:
+             visited_targets: np.ndarray | None = None, misses_before_contact: int = 0) -> PlanResult:
         """Choose the next touch. Never raises on bad input: the status says why there is no goal.
 
         ``visited_targets`` ((K, 3), world): the targets chosen before this
         decision, which replace the planner's memory (a restarted planner told
         the run's history decides as the one that lived through it); None:
         what this planner remembers. The chosen target is appended.
+        ``misses_before_contact``: how many touches met nothing while none has met the
+        object yet (0 after the first contact; ``search_after_misses``).
         """
         t0 = time.perf_counter()
         if visited_targets is not None:
             self.visited = [row.copy() for row in np.asarray(visited_targets, dtype=float).reshape(-1, 3)]
         try:
-            res = self._plan(map_array, tip_xyz, excluded_targets)
+            res = self._plan(map_array, tip_xyz, excluded_targets, int(misses_before_contact))
         except MapError as exc:
             res = PlanResult("bad_map", f"bad variance map: {exc}")
         except TravelError as exc:
@@ -213,7 +219,7 @@ class TouchPlanner:
         res.decision_ms = (time.perf_counter() - t0) * 1e3
         return res
 
-    def _plan(self, map_array, tip_xyz, excluded_targets) -> PlanResult:
+    def _plan(self, map_array, tip_xyz, excluded_targets, misses_before_contact: int = 0) -> PlanResult:
         p = self.params
         tip = np.asarray(tip_xyz, float).reshape(-1)
         if tip.shape != (3,) or not np.isfinite(tip).all():
@@ -229,9 +235,14 @@ class TouchPlanner:
                                     lattice.variance_m2[sl], lattice.plane_z_m)
         q = float(p["search_quantile"])
         min_z = self._min_tip_z_m(dim)
-        if not len(cands) and q > 0 and object_lost(lattice, min_z):  # search for it
-            searched = self._search(lattice, tip, excluded_targets, q, min_z, "no estimated surface", lost=True)
-            if searched is not None:
+        k = int(p["search_after_misses"])
+        refuted = 0 < k <= misses_before_contact  # the prior, refuted by touches that all met nothing
+        if q > 0 and (refuted or not len(cands) and object_lost(lattice, min_z)):  # search for it
+            why = f"{misses_before_contact} touches met nothing, none met the object" if refuted else \
+                "no estimated surface"
+            searched = self._search(lattice, tip, excluded_targets, q, min_z, why, lost=True,
+                                    rings_first=True if refuted else None)
+            if searched is not None and (searched.ok or not len(cands)):
                 return searched
         res = self._plan_on(lattice, cands, tip, excluded_targets, "")
         if res.status in ("all_unreachable", "no_candidates") and q > 0:
@@ -249,7 +260,7 @@ class TouchPlanner:
         return float(self.params["min_tip_z_m"]) if dim == 3 else -np.inf
 
     def _search(self, lattice, tip, excluded_targets, q: float, min_z: float, why: str,
-                lost: bool = False) -> PlanResult | None:
+                lost: bool = False, rings_first: bool | None = None) -> PlanResult | None:
         """Search for the object where it is most probable (:func:`~tactile_planner.search.search_map`);
         when that has nothing reachable left and the object is ``lost`` (no estimated surface at all),
         the coverage rings (:func:`~tactile_planner.search.ring_search_map`, nearest ring first; before
@@ -260,7 +271,7 @@ class TouchPlanner:
         spacing = float(p["search_ring_spacing_m"])
         geometry = TouchGeometry.from_params(p)
 
-        rings_first = bool(p["search_rings_first"])
+        rings_first = bool(p["search_rings_first"]) if rings_first is None else rings_first
 
         def probable() -> PlanResult | None:
             found = search_map(lattice, q, min_z)
