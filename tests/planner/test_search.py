@@ -11,7 +11,7 @@ from scipy.stats import norm
 from tactile_common.fields import KIND_LATTICE, VARIANCE_MAP_DTYPE
 from tactile_planner.maps import MapLattice, parse_variance_map
 from tactile_planner.planner import TouchPlanner, load_params
-from tactile_planner.search import ring_radii_m, ring_search_map, search_field, search_map
+from tactile_planner.search import floating_base, ring_radii_m, ring_search_map, search_field, search_map
 
 CONFIG = Path(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
 
@@ -214,3 +214,68 @@ def test_misses_before_any_contact_start_the_coverage_rings_on_a_prior_with_a_su
         assert f"{misses} touches met nothing" in res.message
     else:  # one of the disc's candidates
         assert abs(np.hypot(res.target_xyz[0] - 0.5, res.target_xyz[1]) - 0.075) < 1e-6
+
+
+# -- an estimate that floats above the table: search under it --------------------------------------
+
+def _blob_lattice(z_centre: float, radius: float = 0.03, n: int = 31) -> MapLattice:
+    """A 3D lattice whose estimate is a ball of ``radius`` at (0.5, 0.0, z_centre) (μ = distance − r)."""
+    ax = (np.linspace(0.35, 0.65, n), np.linspace(-0.15, 0.15, n), np.linspace(0.0, 0.22, 23))
+    X, Y, Z = np.meshgrid(*ax, indexing="ij")
+    d = np.sqrt((X - 0.5) ** 2 + Y ** 2 + (Z - z_centre) ** 2)
+    return MapLattice(axes=ax, mean_m=d - radius, variance_m2=np.full(X.shape, 1e-4), plane_z_m=None)
+
+
+def _map3d(lattice: MapLattice, k: int = 60) -> np.ndarray:
+    """The 3D map of ``lattice`` plus k candidates on the upper half of its ball."""
+    from tactile_common.fields import KIND_CANDIDATE
+
+    X, Y, Z = np.meshgrid(*lattice.axes, indexing="ij")
+    out = np.zeros(X.size, dtype=VARIANCE_MAP_DTYPE)
+    out["x"], out["y"], out["z"] = X.ravel(), Y.ravel(), Z.ravel()
+    out["mean"], out["variance"], out["kind"] = lattice.mean_m.ravel(), lattice.variance_m2.ravel(), KIND_LATTICE
+    i = np.argmin(lattice.mean_m.reshape(-1))
+    c = np.array([X.ravel()[i], Y.ravel()[i], Z.ravel()[i]])
+    r = -float(lattice.mean_m.reshape(-1)[i])
+    g = np.random.default_rng(0).normal(size=(k, 3))
+    g[:, 2] = np.abs(g[:, 2])
+    n = g / np.linalg.norm(g, axis=1, keepdims=True)
+    cand = np.zeros(k, dtype=VARIANCE_MAP_DTYPE)
+    cand["x"], cand["y"], cand["z"] = (c + r * n).T
+    cand["normal_x"], cand["normal_y"], cand["normal_z"] = n.T
+    cand["variance"], cand["kind"] = 1e-4, KIND_CANDIDATE
+    return np.concatenate([out, cand])
+
+
+def test_a_floating_estimate_is_told_from_one_on_the_table():
+    found = floating_base(_blob_lattice(0.10), min_z_m=0.015, gap_m=0.03)
+    assert found is not None
+    centre, radius, z_low = found
+    np.testing.assert_allclose(centre, [0.5, 0.0, 0.0], atol=0.011)
+    assert 0.02 <= radius <= 0.031 and 0.07 <= z_low <= 0.08  # the lowest node inside the 3 cm ball at 10 cm
+    assert floating_base(_blob_lattice(0.025), 0.015, 0.03) is None  # resting on the table
+    assert floating_base(_blob_lattice(0.10), 0.015, 0.08) is None  # within the allowed gap
+    assert floating_base(_lost_lattice(), 0.015, 0.03) is None  # 2D
+
+
+@pytest.mark.parametrize("gap", [0.03, 0.0])
+def test_the_planner_probes_under_a_floating_estimate_towards_its_footprint(gap):
+    """support_gap_m: an estimate floating 7 cm above the table is missing what holds it up: the
+    planner probes under it, from a ring round its footprint, towards the footprint's centre;
+    with the rule off it touches the ball."""
+    params = dict(load_params(str(CONFIG)), mode="3d", strategy="proposed", clearance="mean", support_gap_m=gap)
+    planner = TouchPlanner.from_params(params, seed=1)
+    res = planner.plan(_map3d(_blob_lattice(0.10)), np.array([0.38, -0.12, 0.15]))
+    assert res.ok, res.message
+    if gap == 0.0:
+        assert not res.message.startswith("search")
+        assert abs(np.linalg.norm(res.target_xyz - [0.5, 0.0, 0.10]) - 0.03) < 0.006
+        return
+    assert res.message.startswith("search under the estimate (it floats"), res.message
+    t = res.target_xyz
+    assert params["min_tip_z_m"] <= t[2] < 0.07 - 0.02  # below the ball, a pre-touch offset under it
+    # on the hemisphere round the footprint's centre on the table, a pre-touch offset (0.02 m) outside
+    # the footprint, approached towards that centre
+    centre, radius, _ = floating_base(_blob_lattice(0.10), params["min_tip_z_m"], gap)
+    assert np.linalg.norm(t - centre) == pytest.approx(radius + 0.02, abs=1e-9)
+    np.testing.assert_allclose(res.normal_xyz, (t - centre) / np.linalg.norm(t - centre), atol=1e-9)

@@ -14,7 +14,7 @@ the pre-touch point. World frame, metres, seconds.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping
 
 import numpy as np
@@ -26,7 +26,7 @@ from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
 from .pocket import pocket_entries
 from .paths import path_length_m, shortcut
-from .search import object_lost, ring_radii_m, ring_search_map, search_map
+from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
 from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
@@ -66,6 +66,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                             "have met nothing and none has met the object yet (the request's "
                             "misses_before_contact): the estimate is still the prior, and the touches refute it "
                             "(0 = only when no estimated surface is left)", {"ge": 0}),
+    "support_gap_m": (0.0, "3D: an estimate whose lowest inside node is more than this above the table floats "
+                      "(an object on the table reaches it): probe under it first, on rings round its footprint "
+                      "below it (tactile_planner.search.floating_base; 0 = off)", {"ge": 0.0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -244,6 +247,12 @@ class TouchPlanner:
                                     rings_first=True if refuted else None)
             if searched is not None and (searched.ok or not len(cands)):
                 return searched
+        gap = float(p["support_gap_m"])
+        if dim == 3 and gap > 0 and len(cands):
+            floating = floating_base(lattice, min_z, gap)
+            if floating is not None and (res := self._search_support(lattice, tip, excluded_targets, floating,
+                                                                      min_z)) is not None:
+                return res
         res = self._plan_on(lattice, cands, tip, excluded_targets, "")
         if res.status in ("all_unreachable", "no_candidates") and q > 0:
             # The estimate's surface cannot be touched any more (every candidate blocked, excluded or
@@ -296,6 +305,34 @@ class TouchPlanner:
         if first is not None and first.ok or rings_first:
             return first
         return rings() or first
+
+    def _search_support(self, lattice, tip, excluded_targets, floating, min_z: float) -> PlanResult | None:
+        """Probe under an estimate that floats above the table (``floating`` = (footprint centre,
+        radius, lowest inside z), :func:`~tactile_planner.search.floating_base`): coverage rings
+        round the footprint, the first a pre-touch offset outside it, the next one approach length
+        further, their points from the lowest tip height up to a pre-touch offset below the
+        estimate, each approached towards the footprint's centre; paths keep off both the ring and
+        the estimate. The first plan that is ok, else None (every spot probed: the ordinary
+        candidates)."""
+        p = self.params
+        spacing = float(p["search_ring_spacing_m"])
+        if not spacing > 0:
+            return None
+        geometry = TouchGeometry.from_params(p)
+        centre, radius, z_low = floating
+        top = z_low - geometry.pretouch_offset_m
+        for r in (radius + geometry.pretouch_offset_m, radius + geometry.pretouch_offset_m + geometry.approach_length_m):
+            ring = ring_search_map(lattice, r, spacing, min_z, geometry.pretouch_offset_m, centre, top)
+            if ring is None:
+                continue
+            ring_lattice, ring_cands = ring
+            ring_lattice = replace(ring_lattice, mean_m=np.minimum(ring_lattice.mean_m, lattice.mean_m))
+            res = self._plan_on(ring_lattice, ring_cands, tip, excluded_targets,
+                                f"search under the estimate (it floats: its lowest point {z_low:.3f} m up; ring "
+                                f"r = {r:.3f} m round its footprint): ")
+            if res.ok:
+                return res
+        return None
 
     def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str) -> PlanResult:
         """Choose among ``cands`` on ``lattice`` (the estimate's, or the search field's when

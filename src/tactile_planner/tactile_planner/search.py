@@ -164,8 +164,31 @@ def _ring_points(dim: int, radius_m: float, spacing_m: float) -> np.ndarray:
     return np.column_stack([rho * np.cos(phi), rho * np.sin(phi), z])
 
 
+def floating_base(lattice: MapLattice, min_z_m: float, gap_m: float) -> Optional[tuple[np.ndarray, float, float]]:
+    """3D: an estimated solid that does not reach the table, whose lowest node estimated inside
+    (μ < 0, at or above ``min_z_m``) lies more than ``gap_m`` above the lattice floor (the table).
+    An object on the table reaches the table, so such an estimate is missing what holds it up
+    (a bridge's pillars under its deck). Returns (the footprint's centre (3,) on the floor, its
+    radius (m): the farthest inside node from that centre, horizontally; the lowest inside z), or
+    None (2D, no inside node, or the estimate reaches down to the floor)."""
+    if lattice.dim != 3:
+        return None
+    i, j, k = np.nonzero((lattice.mean_m < 0) & (lattice.axes[2] >= min_z_m)[None, None, :])
+    if not len(k):
+        return None
+    floor = float(lattice.axes[2][0])
+    z_low = float(lattice.axes[2][k.min()])
+    if z_low - floor <= gap_m:
+        return None
+    x, y = lattice.axes[0][i], lattice.axes[1][j]
+    centre = np.array([0.5 * (x.min() + x.max()), 0.5 * (y.min() + y.max()), floor])
+    radius = float(np.sqrt((x - centre[0]) ** 2 + (y - centre[1]) ** 2).max())
+    return centre, radius, z_low
+
+
 def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_z_m: float = -np.inf,
-                    inset_m: float = 0.0) -> Optional[tuple[MapLattice, Candidates]]:
+                    inset_m: float = 0.0, centre_xyz: Optional[np.ndarray] = None,
+                    max_z_m: float = np.inf) -> Optional[tuple[MapLattice, Candidates]]:
     """The coverage search of one ring: the lattice with s = |x − c| − r in place of μ (paths keep
     off the ring) and candidates ``spacing_m`` apart on it, normals pointing away from the centre c
     (:func:`ring_centre`), so each probe sweeps the ring's width towards the centre.
@@ -174,16 +197,18 @@ def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_
     to probe: the GP's mean far from every observation is the prior's shape plus the kernel's
     extrapolation, not evidence, so the rings cover the workspace instead, ring after ring
     (:func:`ring_radii_m`). Candidates farther than ``inset_m`` inside the lattice only (3D: at or
-    above ``min_z_m``); their mean and variance are the estimate's (μ, σ²), so the strategies
-    prefer the unexplored parts of the ring (high σ) near the tip. None when no point is left."""
-    c = ring_centre(lattice)
+    above ``min_z_m`` and below ``max_z_m``); their mean and variance are the estimate's (μ, σ²), so
+    the strategies prefer the unexplored parts of the ring (high σ) near the tip. ``centre_xyz``:
+    another centre than the workspace's (a floating estimate's footprint, :func:`floating_base`).
+    None when no point is left."""
+    c = ring_centre(lattice) if centre_xyz is None else np.asarray(centre_xyz, dtype=float).reshape(3)
     dirs = _ring_points(lattice.dim, radius_m, spacing_m)
     pts = c[: lattice.dim] + radius_m * dirs
     lo = np.array([a[0] for a in lattice.axes]) + inset_m
     hi = np.array([a[-1] for a in lattice.axes]) - inset_m
     keep = np.all((pts >= lo) & (pts <= hi), axis=1)
     if lattice.dim == 3:
-        keep &= pts[:, 2] >= min_z_m
+        keep &= (pts[:, 2] >= min_z_m) & (pts[:, 2] < max_z_m)
     pts, dirs = pts[keep], dirs[keep]
     if not len(pts):
         return None
