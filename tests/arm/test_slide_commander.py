@@ -16,7 +16,7 @@ from std_msgs.msg import Bool  # noqa: E402
 from tactile_driver.commander_api import ArmCommander, CommanderConfig, TaskResult  # noqa: E402
 from tactile_driver.ik import IKSettings, solve_ik  # noqa: E402
 from tactile_driver.slide_loop import FrameContact  # noqa: E402
-from tactile_driver.slide_servo import ContactSense, SlideServoConfig  # noqa: E402
+from tactile_driver.slide_servo import ContactSense, SlideServoConfig, SlideStop  # noqa: E402
 
 
 @pytest.fixture
@@ -76,6 +76,32 @@ def test_slide_steps_replace_each_other_then_the_estop_stops_it(arm, stream):
     assert arm._slide is None and arm._slide_timer is None  # its loop and timer are gone
     assert arm.last_task.extra["stop"] in ("aborted", "length")
     assert not arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig())  # refused while engaged
+
+
+def test_a_moving_slide_slows_to_rest_before_it_ends_and_a_jammed_one_stops_at_once(arm):
+    """The servo's stop while the arm moves: a trajectory to rest (even deceleration within the caps),
+    the slide ends once the arm is at rest; a force above the band (jammed) stops at once."""
+    _state(arm, 1.0)
+    arm.qd = np.full(arm.model.nq, 0.05)  # moving
+    assert arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig(lap_radius_m=0.0))
+    start = arm._slide.start_s
+    arm._slide.servo.stopped = SlideStop.LENGTH  # the servo's next answer: stopped
+    arm._slide.next_tick_s = -np.inf
+    _frame(arm, start + 0.001)
+    arm._slide_tick()
+    assert not arm.is_task_complete() and arm._slide_stopping is not None
+    stop = arm.sent[-1]
+    assert len(stop.points) == 1 and not any(stop.points[0].velocities)
+    arm._slide_stopping = (-np.inf, arm._slide_stopping[1])  # the node clock does not move here: rest reached
+    arm._slide_tick()
+    assert arm.is_task_complete() and arm.get_result() == TaskResult.SUCCEEDED and "length" in arm.last_task.reason
+    # jammed: stop and hold at once
+    assert arm.slide(np.array([0.0, 1.0, 0.0]), 0.1, SlideServoConfig(lap_radius_m=0.0))
+    arm._slide.next_tick_s = -np.inf
+    arm._slide.on_frame(FrameContact(arm._slide.start_s + 0.001, ContactSense(
+        np.array([0.46, 0.0, 0.06]), np.array([-1.0, 0, 0]), 5.0)))
+    arm._slide_tick()
+    assert arm.is_task_complete() and "force" in arm.last_task.reason and arm.sent[-1].points == []
 
 
 def test_stale_joint_states_stop_a_slide(arm):

@@ -56,7 +56,7 @@ from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_star
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog
 from tactile_driver.slide_loop import FrameContact, SlideLoop, stopping_trajectory, tick_trajectory
-from tactile_driver.slide_servo import ContactSense, SlideServoConfig
+from tactile_driver.slide_servo import ContactSense, SlideServoConfig, SlideStop
 from tactile_driver.trajectory import TimedTrajectory, TrajectoryError
 
 
@@ -310,8 +310,10 @@ class ArmCommander:
         step = loop.tick(now, self.tip_xyz)
         if step.stop is not None:
             reason = f"slide stopped: {step.stop.value}, {loop.slid_m:.3f} m"
-            stop = stopping_trajectory(self.model, self.limits, self.box, self.q, self.qd)
-            if stop is None:  # at rest already (or no room to slow down): stop here
+            # a jammed finger (force above the band) stops at once; otherwise the arm slows to rest
+            stop = None if step.stop is SlideStop.FORCE else \
+                stopping_trajectory(self.model, self.limits, self.box, self.q, self.qd)
+            if stop is None:  # at rest already, jammed, or no room to slow down: stop here
                 return self._end_slide(TaskResult.SUCCEEDED, reason)
             self._send_servo(task, stop)
             self._slide_stopping = (now + stop.duration_s, reason)
