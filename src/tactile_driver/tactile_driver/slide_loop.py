@@ -292,9 +292,10 @@ def servo_stream_trajectory(model: ArmModel, limits: MotionLimits, box: Workspac
                             max_joint_step_rad: float = 0.3, max_stretch: int = 16) -> TimedTrajectory:
     """The velocity-continuous replacing trajectory of one tick: two points.
 
-    1. at T₁: the IK of the target b + v T₁ (b = ``base_xyz``, v = ``tip_velocity_xyz``: where the
-       tip would be after T₁ at the slide speed), moving at the joint velocity q̇₁ = J⁺ v (J the
-       tip's linear Jacobian there): the controller runs the cubic Hermite from its current state
+    1. at T₁: the joints q₁ putting the tip at b + v T₁ (b = ``base_xyz``, v = ``tip_velocity_xyz``:
+       where the tip would be after T₁ at the slide speed; :func:`cartesian_step` from ``q_now``,
+       within ``ik.tol_m``), moving at the joint velocity q̇₁ = J⁺ [v; 0] (J the tip's 6×n Jacobian
+       there: the finger's orientation held): the controller runs the cubic Hermite from its current state
        (position and velocity) into it, so a tick that replaces it before T₁ continues the motion
        instead of restarting it from rest; at the slide speed already, the segment has no
        acceleration at all;
