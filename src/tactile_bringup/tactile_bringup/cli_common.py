@@ -90,7 +90,6 @@ def output_problem(path: Path, option: str, folder: bool = False) -> Optional[st
     return None
 
 
-
 def check_outputs(*outputs: tuple[Optional[Path], str, bool]) -> None:
     """Raise ValueError (one line per problem) for any ``(path, option, folder)`` that
     :func:`output_problem` refuses; a None path is not asked for."""

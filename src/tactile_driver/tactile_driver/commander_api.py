@@ -320,15 +320,12 @@ class ArmCommander:
             return
         if step.target_xyz is not None:
             try:
-                traj = self._servo_trajectory(loop, step)
+                traj = tick_trajectory(self.model, self.limits, self.box, self.ik, self.q, self.qd, loop, step,
+                                       self.cfg.slide_stream, self.cfg.max_joint_step_rad)
             except (OutsideWorkspace, TrajectoryError) as exc:
                 loop.abort()
                 return self._end_slide(TaskResult.ABORTED, f"servo step: {exc}")
             self._send_servo(task, traj)
-
-    def _servo_trajectory(self, loop: SlideLoop, step) -> TimedTrajectory:
-        return tick_trajectory(self.model, self.limits, self.box, self.ik, self.q, self.qd, loop, step,
-                               self.cfg.slide_stream, self.cfg.max_joint_step_rad)
 
     def _send_servo(self, task: _Task, traj: TimedTrajectory) -> None:
         msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)

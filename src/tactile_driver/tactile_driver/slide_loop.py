@@ -228,9 +228,8 @@ def servo_step_trajectory(model: ArmModel, limits: MotionLimits, box: WorkspaceB
         q1 = solve_ik(model, target, q0, ik).q
     except ValueError as exc:  # NoSolutionFound
         raise TrajectoryError(str(exc)) from None
+    _check_joint_jump(q0, q1, max_joint_step_rad)
     dq = q1 - q0
-    if float(np.max(np.abs(dq))) > max_joint_step_rad:
-        raise TrajectoryError(f"servo step: joint jump {float(np.max(np.abs(dq))):.3f} rad > {max_joint_step_rad}")
     tip0 = model.fk(q0)[0]
     dist = float(np.linalg.norm(target - tip0))
     a, v = limits.acceleration_rad_s2, limits.velocity_rad_s
@@ -242,16 +241,21 @@ def servo_step_trajectory(model: ArmModel, limits: MotionLimits, box: WorkspaceB
         starts.append(np.asarray(qd_now, dtype=float))
     zero = np.zeros_like(q0)
     for _ in range(60):
-        ok = True
-        for v0 in starts:
-            vel, acc = hermite_extrema(np.array([0.0, T]), np.vstack([q0, q1]), np.vstack([v0, zero]))
-            ok &= bool(np.all(vel[0] <= v * (1 - 1e-9)) and np.all(acc[0] <= a * (1 - 1e-9)))
-        if ok:
+        if all(_within_joint_limits(limits, np.array([0.0, T]), np.vstack([q0, q1]), np.vstack([v0, zero]))
+               for v0 in starts):
             break
         T *= 1.2
     else:
         raise TrajectoryError("servo step: no duration within the joint limits from the current velocity")
     return TimedTrajectory(np.array([T]), q1[None], zero[None], target[None])
+
+
+def _check_joint_jump(q0: np.ndarray, q1: np.ndarray, max_joint_step_rad: float) -> None:
+    """Raise TrajectoryError when a servo step moves a joint more than ``max_joint_step_rad`` (an IK
+    branch flip is not a servo step)."""
+    jump = float(np.max(np.abs(q1 - q0)))
+    if jump > max_joint_step_rad:
+        raise TrajectoryError(f"servo step: joint jump {jump:.3f} rad > {max_joint_step_rad}")
 
 
 def _within_joint_limits(limits: MotionLimits, times_s: np.ndarray, q: np.ndarray, qd: np.ndarray) -> bool:
@@ -264,6 +268,13 @@ def stopping_time_s(limits: MotionLimits, qd_rad_s: np.ndarray) -> float:
     """Shortest time to bring joint velocities ``qd`` to rest at constant deceleration within the caps:
     max_j |qd_j| / a_j (the Hermite segment q → q + qd·T/2, velocities qd → 0, decelerates at qd/T)."""
     return float(np.max(np.abs(np.asarray(qd_rad_s, dtype=float)) / limits.acceleration_rad_s2))
+
+
+def _rest_point(limits: MotionLimits, q: np.ndarray, qd: np.ndarray) -> tuple[float, np.ndarray]:
+    """(T_s, q + q̇ T_s / 2): where joints at ``q`` moving at ``qd`` come to rest, decelerating evenly
+    in T_s = 1.05 × :func:`stopping_time_s` (5 % inside the caps)."""
+    T_s = 1.05 * stopping_time_s(limits, qd)
+    return T_s, q + 0.5 * T_s * qd
 
 
 def cartesian_step(model: ArmModel, q_now: np.ndarray, target_xyz: np.ndarray, iterations: int = 4,
@@ -310,8 +321,9 @@ def servo_stream_trajectory(model: ArmModel, limits: MotionLimits, box: Workspac
 
     Raises:
         OutsideWorkspace: a target or the stopping point outside the box.
-        TrajectoryError: no IK solution, a joint jump above ``max_joint_step_rad``, a speed above the
-            tip speed, a stopping point beyond the joint limits, or no duration within the caps.
+        TrajectoryError: no joint step to the target within ``ik.tol_m`` and the joint limits, a
+            joint jump above ``max_joint_step_rad``, a speed above the tip speed, a stopping point
+            beyond the joint limits, or no duration within the caps.
     """
     base = np.asarray(base_xyz, dtype=float).reshape(3)
     v = np.asarray(tip_velocity_xyz, dtype=float).reshape(3)
@@ -327,15 +339,14 @@ def servo_stream_trajectory(model: ArmModel, limits: MotionLimits, box: Workspac
         q1 = cartesian_step(model, q0, target)
         if float(np.linalg.norm(model.fk(q1)[0] - target)) > ik.tol_m or not model.within_limits(q1):
             raise TrajectoryError("servo stream: no joint step to the target within the joint limits")
-        if float(np.max(np.abs(q1 - q0))) > max_joint_step_rad:
-            raise TrajectoryError(f"servo step: joint jump {float(np.max(np.abs(q1 - q0))):.3f} rad > "
-                                  f"{max_joint_step_rad}")
+        _check_joint_jump(q0, q1, max_joint_step_rad)
         _, _, J = model.fk_jacobian(q1)
         qd1 = np.linalg.pinv(J) @ np.concatenate([v, np.zeros(3)])  # tip velocity v, orientation held
         if np.any(np.abs(qd1) > limits.velocity_rad_s * (1 - 1e-9)):
             raise TrajectoryError("servo stream: the tip velocity needs a joint velocity beyond its cap")
-        T_s = max(1.05 * stopping_time_s(limits, qd1), 1e-3)
-        q2 = q1 + 0.5 * T_s * qd1
+        T_s, q2 = _rest_point(limits, q1, qd1)
+        if T_s < 1e-3:  # (nearly) no velocity: a millisecond's tail
+            T_s, q2 = 1e-3, q1 + 0.5e-3 * qd1
         if _within_joint_limits(limits, np.array([0.0, T1, T1 + T_s]), np.vstack([q0, q1, q2]),
                                 np.vstack([v0, qd1, zero])):
             break
@@ -357,13 +368,11 @@ def stopping_trajectory(model: ArmModel, limits: MotionLimits, box: WorkspaceBox
     rest, or the stopping point leaves the box or the joint limits (stop at once instead)."""
     if qd_now is None or not np.all(np.isfinite(qd_now)):
         return None
-    qd = np.asarray(qd_now, dtype=float)
-    T_s = 1.05 * stopping_time_s(limits, qd)
+    T_s, q2 = _rest_point(limits, np.asarray(q_now, dtype=float), np.asarray(qd_now, dtype=float))
     if T_s < 1e-3:
         return None
-    q2 = np.asarray(q_now, dtype=float) + 0.5 * T_s * qd
     tip2 = model.fk(q2)[0]
-    if not model.within_limits(q2) or not bool(np.all(box.inside(tip2[None]))):
+    if not model.within_limits(q2) or not box.inside(tip2)[0]:
         return None
     return TimedTrajectory(np.array([T_s]), q2[None], np.zeros_like(q2)[None], tip2[None])
 
