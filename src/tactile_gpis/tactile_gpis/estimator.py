@@ -35,7 +35,9 @@ from tactile_common.fields import (
 )
 
 from .export import export_level_set, write_observations_ply
-from .gp import GPIS, FactorError
+from .gp import GPIS, VALUE, FactorError, gradient_rows
+from .hyperfit import (LENGTH, NOISE, RADIUS, SCALE, FitResult, FitRows, R as THIN_PLATE_R, fit_hyperparameters,
+                       kernel_of, mean_of, search_grid)
 from .kernels import KERNEL_TYPES, make_kernel
 from .local import LocalGPIS
 from .levelset import LevelSet, farthest_point_subsample, lattice_points, zero_level_set
@@ -57,6 +59,16 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "kernel.length_scale_m": (0.05, "stationary kernels: length scale (m)", {"gt": 0.0}),
     "kernel.signal_variance": (1.0, "stationary: signal variance (m^2); thin_plate: scale of k", {"gt": 0.0}),
     "kernel.R_m": (0.0, "thin_plate R (m); 0 = workspace diagonal (above every data distance)", {"ge": 0.0}),
+    "kernel.fit": (False, "choose the hyperparameters (kernel scale, thin_plate R or length scale, "
+                   "noise.contact_var_m2, the prior sphere's radius) by maximising the log marginal likelihood "
+                   "log p(y | θ) of the observations so far, on a grid around the configured values (exact path "
+                   "only; off until the generated-suite benchmark says it helps: docs/gpis.md)"),
+    "kernel.fit_every": (4, "kernel.fit: refit after every this many contacts added to the GP (free-space points "
+                         "do not count)", {"ge": 1}),
+    "kernel.fit_min_contacts": (3, "kernel.fit: the first fit at this many contacts added to the GP", {"ge": 1}),
+    "kernel.fit_factors": ([0.25, 0.5, 1.0, 2.0, 4.0], "kernel.fit: each hyperparameter's grid, these factors "
+                           "times its configured value (1 is always in; thin_plate R only factors >= 1)",
+                           {"gt": 0.0}),
     "noise.contact_var_m2": (1e-6, "variance of a contact's value f(x) = 0 (m^2)", {"ge": 0.0}),
     "noise.normal_var": (1e-2, "variance of each component of a normal (gradient) observation", {"ge": 0.0}),
     "noise.free_space_var_m2": (1e-4, "variance of a free-space observation (m^2)", {"ge": 0.0}),
@@ -212,6 +224,17 @@ class ShapeEstimator:
             raise ValueError(f"local.context_m_{self.dim}d must be > 0, got {self._local_args['context_m']}")
         self.gp = GPIS(self.kernel, self.dim, self._prior(p), jitter=_nonneg(p, "jitter"))
         self.local: Optional[LocalGPIS] = None
+        self.fit_enabled = _flag(p, "kernel.fit")
+        self.fit_every = _count(p, "kernel.fit_every")
+        self.fit_min_contacts = _count(p, "kernel.fit_min_contacts")
+        fit_factors = _factors(p, "kernel.fit_factors")
+        if self.fit_enabled and self.method != "exact":
+            raise ValueError(f"kernel.fit: true needs method 'exact' (the local path has no single GP to refit), "
+                             f"got method '{self.method}'")
+        self._theta_cfg = self._configured_hyperparameters()
+        #: the hyperparameters in use, by parameter name (the configured ones until a fit changes them)
+        self.hyperparameters: dict[str, float] = dict(self._theta_cfg)
+        self._fit_grid = search_grid(self._theta_cfg, fit_factors)
         self.reset()
 
     @classmethod
@@ -241,9 +264,26 @@ class ShapeEstimator:
             return sphere_mean(*self.prior_sphere)
         raise ValueError(f"prior.type must be 'auto', 'given' or 'none', got '{kind}'")
 
+    def _configured_hyperparameters(self) -> dict[str, float]:
+        """The hyperparameters ``kernel.fit`` searches, at their configured values, in search order."""
+        theta = {SCALE: float(self.params["kernel.signal_variance"])}
+        if self.kernel.name == "thin_plate":
+            theta[THIN_PLATE_R] = self.kernel.R_m
+        else:
+            theta[LENGTH] = self.kernel.length_scale_m
+        theta[NOISE] = self.contact_var
+        if self.prior_sphere is not None:
+            theta[RADIUS] = self.prior_sphere[1]
+        return theta
+
     # -- state ---------------------------------------------------------------
     def reset(self) -> None:
-        """Forget every observation (back to the prior)."""
+        """Forget every observation (back to the prior and the configured hyperparameters)."""
+        if self.hyperparameters != self._theta_cfg:
+            kernel = kernel_of(self.kernel.name, self._theta_cfg)
+            self.gp.rebuild(kernel, mean_of(self._prior_centre(), self._theta_cfg), np.zeros((0, self.dim)),
+                            np.zeros(0, int), np.zeros(0), np.zeros(0))
+            self._adopt(self._theta_cfg, kernel)
         self.gp.reset()
         if self.method == "local":
             self.gp.clear_eval_points()
@@ -253,6 +293,10 @@ class ShapeEstimator:
                 self.gp.set_eval_points(self._lattice)
             self.local = None
         self._obs: list[tuple] = []  # accepted GP observations (x, value, var, normal, normal var)
+        self._obs_tuned: list[bool] = []  # per _obs: its value noise is noise.contact_var_m2 (kernel.fit tunes it)
+        self._n_gp_contacts = 0  # contacts added to the GP (kernel.fit's schedule)
+        #: the last kernel.fit search (None: none yet)
+        self.last_fit: Optional[FitResult] = None
         self._inputs: list[tuple] = []  # the accepted add_observation arguments (point, normal, label, var)
         self._version = 0
         self._points = np.zeros((0, self.dim))
@@ -323,6 +367,7 @@ class ShapeEstimator:
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
         self._obs.append(obs)
+        self._obs_tuned.append(label == LABEL_CONTACT and value_var_m2 is None)
         if label == LABEL_FREE_SPACE:
             self._add_sweep(x, normal_xyz, obs[2])
         normal = np.full(3, np.nan) if normal_xyz is None else np.asarray(normal_xyz, float).ravel()
@@ -335,6 +380,10 @@ class ShapeEstimator:
                                                obs[3] if obs[3] is not None else np.full(self.dim, np.nan)])
         self.n_observations += 1
         self._version += 1
+        if label == LABEL_CONTACT:
+            self._n_gp_contacts += 1
+            if self._fit_due():
+                self._fit_hyperparameters()
         if self.method == "auto" and self.local is None and self.n_observations >= self.auto_min_contacts:
             self._switch_to_local()
         return True, ""
@@ -363,6 +412,7 @@ class ShapeEstimator:
             except FactorError:
                 continue  # a row the factor cannot take: the probe end itself is in
             self._obs.append(row)
+            self._obs_tuned.append(False)
             near = np.vstack([near, x])
             self._points = np.vstack([self._points, x])
 
@@ -432,6 +482,70 @@ class ShapeEstimator:
             if consistent and var[0] < self.thin_var_ratio * value_var and abs(mu[0]) <= 2.0 * np.sqrt(value_var):
                 return f"predicted variance {var[0]:.2e} m^2 below {self.thin_var_ratio:g} x its noise"
         return ""
+
+    # -- hyperparameters (kernel.fit) --------------------------------------------
+    def _fit_due(self) -> bool:
+        """A fit after contact c = fit_min_contacts, then after every fit_every-th more."""
+        c = self._n_gp_contacts
+        return self.fit_enabled and c >= self.fit_min_contacts and (c - self.fit_min_contacts) % self.fit_every == 0
+
+    def _prior_centre(self) -> Optional[np.ndarray]:
+        return None if self.prior_sphere is None else self.prior_sphere[0]
+
+    def fit_rows(self) -> FitRows:
+        """The rows the GP holds, in its order (a point's value row, then its gradient rows),
+        with the rows whose noise is ``noise.contact_var_m2`` marked."""
+        X, t, y, noise, tuned = [], [], [], [], []
+        for (x, value, var, normal, normal_var), tun in zip(self._obs, self._obs_tuned):
+            X.append(x[None])
+            t.append([VALUE])
+            y.append([value])
+            noise.append([var])
+            tuned.append([tun])
+            if normal is not None:
+                Xg, tg = gradient_rows(x[None])
+                X.append(Xg)
+                t.append(tg)
+                y.append(normal)
+                noise.append(np.full(self.dim, normal_var))
+                tuned.append(np.zeros(self.dim, bool))
+        if not X:
+            return FitRows(np.zeros((0, self.dim)), np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros(0, bool))
+        return FitRows(np.vstack(X), np.concatenate(t).astype(int), np.concatenate(y).astype(float),
+                       np.concatenate(noise).astype(float), np.concatenate(tuned).astype(bool))
+
+    def _fit_hyperparameters(self) -> None:
+        """Search θ (:mod:`tactile_gpis.hyperfit`) and, if it moved, rebuild the GP from the stored
+        rows with it (one batch factorisation and the lattice's V). A rebuild the factor
+        refuses keeps the current θ."""
+        rows = self.fit_rows()
+        centre = self._prior_centre()
+        result = fit_hyperparameters(rows, self.kernel.name, self.hyperparameters, self._fit_grid, self.gp.jitter,
+                                     centre)
+        self.last_fit = result
+        if result.theta == self.hyperparameters:
+            return
+        mean = mean_of(centre, result.theta)
+        if all(result.theta[k] == v for k, v in self.hyperparameters.items() if k != RADIUS):
+            self.gp.set_mean(mean, rows.y)  # the prior radius alone: the factor and V stay
+            self._adopt(result.theta, self.kernel)
+            return
+        kernel = kernel_of(self.kernel.name, result.theta)
+        try:
+            self.gp.rebuild(kernel, mean, rows.X, rows.t, rows.y, rows.noise_with(result.theta[NOISE]))
+        except FactorError:
+            return
+        self._adopt(result.theta, kernel)
+
+    def _adopt(self, theta: Mapping[str, float], kernel) -> None:
+        """Take θ as the estimator's hyperparameters (the GP already has them)."""
+        self.kernel = kernel
+        self.contact_var = float(theta[NOISE])
+        if self.prior_sphere is not None:
+            self.prior_sphere = (self.prior_sphere[0], float(theta[RADIUS]))
+        self.hyperparameters = dict(theta)
+        self._obs = [(x, v, self.contact_var if tun else var, n, nv)
+                     for (x, v, var, n, nv), tun in zip(self._obs, self._obs_tuned)]
 
     # -- paths -----------------------------------------------------------------
     def _new_local(self) -> LocalGPIS:
@@ -633,6 +747,31 @@ def _unit(g: np.ndarray) -> np.ndarray:
         sq += g[:, i] * g[:, i]
     n = np.sqrt(sq)[:, None]
     return np.divide(g, n, out=np.zeros_like(g), where=n > 1e-12)
+
+
+def _flag(p: Mapping[str, Any], key: str) -> bool:
+    v = p[key]
+    if not isinstance(v, (bool, np.bool_)):
+        raise ValueError(f"{key} must be true or false, got {v!r}")
+    return bool(v)
+
+
+def _count(p: Mapping[str, Any], key: str) -> int:
+    v = p[key]
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 1:
+        raise ValueError(f"{key} must be an integer >= 1, got {v!r}")
+    return int(v)
+
+
+def _factors(p: Mapping[str, Any], key: str) -> np.ndarray:
+    v = p[key]
+    try:
+        f = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        f = None
+    if f is None or f.ndim != 1 or not len(f) or not (np.isfinite(f).all() and (f > 0).all()):
+        raise ValueError(f"{key} must be a non-empty list of finite numbers > 0, got {v!r}")
+    return f
 
 
 def _nonneg(p: Mapping[str, Any], key: str) -> float:

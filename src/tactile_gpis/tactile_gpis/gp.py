@@ -78,6 +78,22 @@ def cross_cov(kernel: Kernel, Xa: np.ndarray, ta: np.ndarray, Xb: np.ndarray, tb
     return out
 
 
+def prior_rows(mean_fn: MeanFn, X: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(n,) prior mean of each observation row: m(x) for a value row, dm/dx_t for a gradient row."""
+    m_val, m_grad = mean_fn(X)
+    return np.where(t < 0, m_val, m_grad[np.arange(len(t)), np.maximum(t, 0)])
+
+
+def gaussian_log_density(L: np.ndarray, beta: np.ndarray):
+    """log N(r; 0, L L^T) = -|beta|^2/2 - sum log diag L - n/2 log 2 pi, given beta = L^-1 r.
+
+    ``beta`` (n,) gives a float; (n, c) gives (c,), one log density per residual column
+    (several prior means against one factor)."""
+    n = len(L)
+    quad = beta @ beta if beta.ndim == 1 else np.einsum("ic,ic->c", beta, beta)
+    return -0.5 * quad - np.log(np.diag(L)).sum() - 0.5 * n * np.log(2 * np.pi)
+
+
 def gradient_rows(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows observing every gradient component at each point: (N*d, d) points, (N*d,) types."""
     n, d = X.shape
@@ -171,9 +187,7 @@ class GPIS:
             raise ValueError("observation rows must be finite")
         if (noise_var < 0).any():
             raise ValueError("noise variances must be >= 0")
-        m_val, m_grad = self.mean_fn(X)
-        prior = np.where(t < 0, m_val, m_grad[np.arange(B), np.maximum(t, 0)])
-        resid = y - prior
+        resid = y - prior_rows(self.mean_fn, X, t)
         n = self.n
         if K12 is None:
             K12 = cross_cov(self.kernel, self.X, self.t, X, t)
@@ -251,6 +265,54 @@ class GPIS:
         self._cap = self.n
         if self._eval is not None:
             self.set_eval_points(self._eval)
+
+    def rebuild(self, kernel: Kernel, mean_fn: MeanFn, X: np.ndarray, t: np.ndarray, y: np.ndarray,
+                noise_var: np.ndarray) -> None:
+        """Replace the kernel, the prior mean and every row (e.g. new hyperparameters), in one
+        batch factorisation: O(n^3), and O(n^2 |M|) for the evaluation set.
+
+        Raises:
+            FactorError: K + diag(noise + jitter) is not positive definite; the state is
+                left unchanged.
+        """
+        X = np.asarray(X, float).reshape(-1, self.dim)
+        t = np.asarray(t, int).reshape(-1)
+        y = np.asarray(y, float).reshape(-1)
+        noise_var = np.asarray(noise_var, float).reshape(-1)
+        if not len(X) == len(t) == len(y) == len(noise_var):
+            raise ValueError(f"rows differ in length: {len(X)} points, {len(t)} types, {len(y)} values, "
+                             f"{len(noise_var)} noise variances")
+        old = self.kernel, self.mean_fn, self.n, self.X, self.t, self.resid, self.noise
+        self.kernel, self.mean_fn = kernel, mean_fn
+        if not len(t):
+            self.reset()
+            return
+        self.n, self.X, self.t, self.noise = len(t), X, t, noise_var
+        self.resid = y - prior_rows(mean_fn, X, t)
+        try:
+            self.refit()  # fails before it changes the factor or the evaluation set
+        except FactorError:
+            self.kernel, self.mean_fn, self.n, self.X, self.t, self.resid, self.noise = old
+            raise
+
+    def set_mean(self, mean_fn: MeanFn, y: np.ndarray) -> None:
+        """Replace the prior mean only (K and the factor stay): with the rows' observed values
+        ``y`` (n,), beta = L^-1 (y - m(X)) and the evaluation mean m(M) + V^T beta again,
+        O(n^2 + n |M|)."""
+        y = np.asarray(y, float).reshape(-1)
+        if y.shape != (self.n,):
+            raise ValueError(f"y must hold the {self.n} rows' values, got {y.shape}")
+        self.mean_fn = mean_fn
+        self.resid = y - prior_rows(mean_fn, self.X, self.t)
+        if self.n:
+            self._beta[: self.n] = solve_triangular(self.L, self.resid, lower=True, check_finite=False)
+        if self._eval is not None:
+            self._eval_prior = mean_fn(self._eval)[0]
+            self._eval_mean = self._eval_prior.copy()
+            for b, block in enumerate(self._V):
+                s, e = b * _V_BLOCK_ROWS, min(self.n, (b + 1) * _V_BLOCK_ROWS)
+                if e > s:
+                    self._eval_mean += np.einsum("bm,b->m", block[: e - s], self.beta[s:e])
 
     # -- evaluation set ------------------------------------------------------
     def set_eval_points(self, M: np.ndarray) -> None:
@@ -332,5 +394,6 @@ class GPIS:
         return grad + (W.T @ self.beta).reshape(len(Xq), self.dim)
 
     def log_marginal_likelihood(self) -> float:
-        """log p(y) = -|beta|^2/2 - sum log diag L - n/2 log 2 pi."""
-        return float(-0.5 * self.beta @ self.beta - np.log(np.diag(self.L)).sum() - 0.5 * self.n * np.log(2 * np.pi))
+        """log p(y) = -|beta|^2/2 - sum log diag L - n/2 log 2 pi
+        (= log N(y; m(X), K + diag(noise + jitter)))."""
+        return float(gaussian_log_density(self.L, self.beta))

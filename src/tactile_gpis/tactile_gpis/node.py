@@ -78,20 +78,34 @@ class GpisEstimatorNode(Node):
     def add_initial(self, path: str) -> None:
         """Start from a run's observations (a resumed run); a bad file ends the node with one line."""
         obs = read_observations(path)
+        before = dict(self.estimator.hyperparameters)
         rejected = [reason for p, n, label in zip(xyz(obs), normals(obs), obs["label"])
                     for ok, reason in [self.estimator.add_observation(p, n, int(label))] if not ok]
         self.get_logger().info(f"started from {len(obs) - len(rejected)} observations of {path}"
                                + (f" ({len(rejected)} rejected: {rejected[0]})" if rejected else ""))
+        self.log_hyperparameters(before)
 
     def on_contacts(self, msg: PointCloud2) -> None:
         self.n_received += 1
         if stamp_ns(msg.header.stamp) > stamp_ns(self.stamp):
             self.stamp = msg.header.stamp
+        before = dict(self.estimator.hyperparameters)
         for ok, reason in self.add_cloud(msg):
             if not ok:
                 self.n_rejected += 1
                 self.get_logger().warn(f"observation rejected ({self.n_rejected} so far): {reason}")
+        self.log_hyperparameters(before)
         self.publish_estimate()
+
+    def log_hyperparameters(self, before: dict[str, float]) -> None:
+        """One INFO line when kernel.fit changed the hyperparameters."""
+        after = self.estimator.hyperparameters
+        changed = [f"{k} {before[k]:.4g} -> {v:.4g}" for k, v in after.items() if v != before.get(k)]
+        if changed:
+            fit = self.estimator.last_fit
+            self.get_logger().info(f"hyperparameters by marginal likelihood ({self.estimator.n_observations} "
+                                   f"observations, log p(y) {fit.log_marginal_likelihood:.4g}): "
+                                   + ", ".join(changed))
 
     def add_cloud(self, msg: PointCloud2) -> list[tuple[bool, str]]:
         if msg.header.frame_id != self.frame_id:

@@ -5,7 +5,8 @@ The file holds what rebuilds the estimate exactly: the estimator's full paramete
 :data:`tactile_gpis.estimator.PARAMETERS`) and every accepted observation in the order it
 was added (contacts and free-space points, world frame, metres, with the normals as
 given). Loading builds a :class:`ShapeEstimator` from ``params`` and adds the observations
-again, so the loaded estimate is the original one (the GP update is deterministic). For
+again, so the loaded estimate is the original one (the GP update is deterministic; with
+``kernel.fit`` the hyperparameter fits happen after the same contacts, on the same rows). For
 a reader the file also spells out what the parameters resolved to (``model``: kernel
 hyperparameters, the prior sphere, the lattice), and ``check`` holds the posterior mean
 and variance at a few points, which loading compares against the rebuilt estimate to catch
@@ -61,6 +62,7 @@ def model_description(est: ShapeEstimator) -> dict[str, Any]:
                     "plane_z_m": est.plane_z_m if est.dim == 2 else None},
         "method": est.method,
         "active_method": est.active_method,
+        "hyperparameters": dict(est.hyperparameters),  # in use (kernel.fit: the last fit's choice)
     }
 
 
