@@ -1,11 +1,14 @@
 """A candidate at the bottom of a slot the estimate shows too narrow for the path margin but wide enough
-for the finger (tactile_planner.pocket): entered along its approach axis instead of being unreachable.
+for the finger (tactile_planner.pocket): entered along its approach axis instead of being unreachable;
+free space behind a mouth narrower than the margin: bridged through the mouth, in and out (tactile_planner.graph).
 Oracle: the slot's signed distance, computed here from its boxes (not from the planner's clearance)."""
 
 from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse.csgraph as csg
+from scipy.ndimage import distance_transform_edt
 
 from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, VARIANCE_MAP_DTYPE
 from tactile_planner.graph import build_free_graph
@@ -80,7 +83,8 @@ def test_the_planner_touches_the_slot_bottom_through_its_entry(pocket_entry_m):
     lat = _lattice(0.013)
     cand = np.array([[0.5, 0.0, Z]])
     m = _as_map(lat, cand, np.array([[0.0, 1.0, 0.0]]))
-    params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_entry_m=pocket_entry_m)
+    params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_entry_m=pocket_entry_m,
+                  pocket_link_m=pocket_entry_m)  # off: both ways into a pocket
     res = TouchPlanner.from_params(params, seed=0).plan(m, np.array([0.40, 0.10, Z]))
     if pocket_entry_m == 0:
         assert res.status == "all_unreachable" and "no free pre-touch point" in res.message, res.message
@@ -94,3 +98,93 @@ def test_the_planner_touches_the_slot_bottom_through_its_entry(pocket_entry_m):
     s = np.linspace(0, 1, 100)[:, None]
     pts = np.vstack([a + s * (b - a) for a, b in zip(res.path_xyz[:-1, :2], res.path_xyz[1:, :2])])
     assert _slot_sdf(pts, 0.013).min() > 0.01
+
+
+def _bottle_sdf(p):
+    """A block (x 0.42..0.58, y -0.05..0.03) hollowed by a cavity (x 0.46..0.54, y -0.03..0.01: 20 mm of
+    room for the tip centre in the middle) open through a 26 mm mouth (x 0.5 ± 0.013, y 0.01..0.03): the
+    mouth leaves the tip centre 13 mm, less than the path margin, more than the finger needs. max(block,
+    −cavity) with the cavity a union of boxes: its zero set is the solid's boundary (what the planner
+    reads), its magnitude only a bound of the distance; the oracle of the tests is :func:`_bottle_gap`."""
+    block = _box_sdf(p, [0.42, -0.05], [0.58, 0.03])
+    cavity = np.minimum(_box_sdf(p, [0.46, -0.03], [0.54, 0.01]), _box_sdf(p, [0.487, 0.0], [0.513, 0.2]))
+    return np.maximum(block, -cavity)
+
+
+_FINE_M = 2.5e-4  # the oracle's raster
+
+
+def _bottle_gap(p):
+    """Distance (m) from points outside the bottle's solid to it: an exact distance transform of the solid
+    rasterised at 0.25 mm (independent of the planner's lattice and its zero crossings)."""
+    xs, ys = np.arange(0.38, 0.62, _FINE_M), np.arange(-0.09, 0.10, _FINE_M)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    solid = _bottle_sdf(np.stack([X, Y], axis=-1)) <= 0
+    dist = distance_transform_edt(~solid, sampling=_FINE_M)
+    i = np.clip(np.rint((p[:, 0] - xs[0]) / _FINE_M).astype(int), 0, len(xs) - 1)
+    j = np.clip(np.rint((p[:, 1] - ys[0]) / _FINE_M).astype(int), 0, len(ys) - 1)
+    return dist[i, j]
+
+
+def _bottle_lattice(n=160):
+    ax = (np.linspace(0.35, 0.65, n), np.linspace(-0.15, 0.15, n))
+    X, Y = np.meshgrid(*ax, indexing="ij")
+    mean = _bottle_sdf(np.stack([X, Y], axis=-1))
+    return MapLattice(axes=ax, mean_m=mean, variance_m2=np.full(mean.shape, 1e-6), plane_z_m=Z)
+
+
+def test_free_space_cut_off_behind_a_narrow_mouth_is_bridged_through_it():
+    r_tip, gap, margin = 0.01, 0.002, 0.015
+    plain = build_free_graph(_bottle_lattice(), margin, 0.03, -np.inf, None, "distance")
+    graph = build_free_graph(_bottle_lattice(), margin, 0.03, -np.inf, None, "distance", r_tip + gap, 0.06)
+    inside = np.array([0.5, -0.01, Z])  # the cavity floor's candidate (0.5, -0.03) + 20 mm along +y
+    outside = np.array([0.40, 0.10, Z])
+    _, comp = csg.connected_components(plain.length_m, directed=False)
+    assert comp[plain.nearest_node(inside)] != comp[plain.nearest_node(outside)]  # cut off: the case
+    # bridged: the same nodes and edges as before, plus one lattice path through the mouth
+    new = ~np.isin(graph.grid_of_node, plain.grid_of_node)
+    assert 0 < new.sum() < 20
+    old = graph.node_of_grid[plain.grid_of_node]
+    np.testing.assert_array_equal(graph.length_m[old][:, old].toarray(), plain.length_m.toarray())
+    _, comp = csg.connected_components(graph.length_m, directed=False)
+    assert comp[graph.nearest_node(inside)] == comp[graph.nearest_node(outside)]
+    # every node and edge of the bridge keeps the finger's own room, the skin off the true walls
+    xy = graph.xyz[new, :2]
+    assert np.all(np.abs(xy[:, 0] - 0.5) < 0.013) and np.all((xy[:, 1] > 0.0) & (xy[:, 1] < 0.05))  # in the mouth
+    coo = graph.length_m.tocoo()
+    on_bridge = new[coo.row] | new[coo.col]
+    s = np.linspace(0, 1, 20)[None, :, None]
+    pts = graph.xyz[coo.row[on_bridge], None, :2] * (1 - s) + graph.xyz[coo.col[on_bridge], None, :2] * s
+    assert _bottle_gap(pts.reshape(-1, 2)).min() >= r_tip + gap - 1e-3
+    # a mouth narrower than the finger, or a bridge longer than allowed: still cut off
+    for clearance, longest in ((0.014, 0.06), (r_tip + gap, 0.005)):
+        g = build_free_graph(_bottle_lattice(), margin, 0.03, -np.inf, None, "distance", clearance, longest)
+        assert g.n_nodes == plain.n_nodes
+
+
+@pytest.mark.parametrize("pocket_link_m", [0.06, 0.0])
+def test_the_planner_goes_in_and_out_through_a_narrow_mouth(pocket_link_m):
+    lat = _bottle_lattice()
+    cand = np.array([[0.5, -0.03, Z], [0.5, -0.05, Z]])  # the cavity floor; the block's outer bottom face
+    normals = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
+    params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_link_m=pocket_link_m)
+    m = _as_map(lat, cand[:1], normals[:1])
+    res = TouchPlanner.from_params(params, seed=0).plan(m, np.array([0.40, 0.10, Z]))
+    if pocket_link_m == 0:
+        assert res.status == "all_unreachable" and "in another free-space component" in res.message, res.message
+        return
+    assert res.ok, res.message
+    np.testing.assert_allclose(res.pretouch_xyz, [0.5, -0.01, Z], atol=1e-9)
+    s = np.linspace(0, 1, 100)[:, None]
+
+    def skin_gap(path):  # the true clearance of the tip's skin along a path
+        pts = np.vstack([a + s * (b - a) for a, b in zip(path[:-1, :2], path[1:, :2])])
+        return _bottle_gap(pts).min() - 0.01
+
+    assert skin_gap(res.path_xyz) > 0.0
+    # from inside the cavity (after that touch), out through the mouth to the outer bottom face
+    m = _as_map(lat, cand[1:], normals[1:])
+    out = TouchPlanner.from_params(params, seed=0).plan(m, res.pretouch_xyz)
+    assert out.ok, out.message
+    np.testing.assert_allclose(out.pretouch_xyz, [0.5, -0.07, Z], atol=1e-9)
+    assert skin_gap(out.path_xyz) > 0.0

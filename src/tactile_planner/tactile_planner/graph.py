@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.csgraph as csg
 from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
@@ -73,11 +74,13 @@ class FreeSpaceGraph:
         d2 = np.sum((self.xyz - np.asarray(p_xyz, float)[None, :]) ** 2, axis=1)
         return int(np.argmin(d2))
 
-    def attach(self, p_xyz: np.ndarray, reach: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    def attach(self, p_xyz: np.ndarray, reach: int = 2,
+               allowed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Nearest free node to each point among lattice nodes within ``reach`` cells.
 
         Args:
             p_xyz: (M, 3) points.
+            allowed: optional (N,) bool over the graph's nodes: attach only to those.
         Returns:
             node (M,) (−1 if none in reach) and distance (M,) in metres (inf if none).
         """
@@ -91,6 +94,8 @@ class FreeSpaceGraph:
         inside = np.all((idx >= 0) & (idx < shape), axis=2)
         flat = np.ravel_multi_index(tuple(np.clip(idx, 0, shape - 1).transpose(2, 0, 1)), lat.shape)
         node = np.where(inside, self.node_of_grid[flat], -1)
+        if allowed is not None:
+            node = np.where((node >= 0) & allowed[np.maximum(node, 0)], node, -1)
         pos = np.take(self.xyz, np.maximum(node, 0), axis=0)  # (M, K, 3)
         full = np.asarray(p_xyz, float).reshape(-1, 3)
         dist = np.linalg.norm(pos - full[:, None, :], axis=2)
@@ -166,6 +171,72 @@ def _view(padded: np.ndarray, off: tuple, shape: tuple) -> np.ndarray:
     return padded[tuple(slice(1 + o, 1 + o + n) for o, n in zip(off, shape))]
 
 
+def _lattice_edges(free: np.ndarray, spacing_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edges (8 / 26 neighbours, each once) between ``free`` lattice nodes whose every lattice node of the
+    box the edge spans is free: flat lattice indices (src, dst) and lengths (m)."""
+    shape, d = free.shape, free.ndim
+    padded = np.pad(free, 1, constant_values=False)
+    strides = np.array([int(np.prod(shape[k + 1:])) for k in range(d)])
+    rows, cols, lens = [], [], []
+    for off in itertools.product((-1, 0, 1), repeat=d):
+        if off <= (0,) * d:  # each undirected edge once: lexicographically positive offsets
+            continue
+        box = free.copy()
+        for sub in itertools.product(*[(0, o) if o else (0,) for o in off]):
+            if any(sub):
+                box &= _view(padded, sub, shape)
+        src = np.flatnonzero(box.ravel())
+        rows.append(src)
+        cols.append(src + int(np.dot(off, strides)))
+        lens.append(np.full(len(src), float(np.linalg.norm(np.array(off) * spacing_m))))
+    if not rows:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    return np.concatenate(rows), np.concatenate(cols), np.concatenate(lens)
+
+
+def _symmetric(src: np.ndarray, dst: np.ndarray, length_m: np.ndarray, n: int) -> sp.csr_matrix:
+    return sp.coo_matrix((np.concatenate([length_m, length_m]), (np.concatenate([src, dst]), np.concatenate([dst, src]))),
+                         shape=(n, n)).tocsr()
+
+
+def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
+            spacing_m: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """Join each free-space component to the largest by the shortest lattice path (at most ``max_m``)
+    through ``narrow`` nodes (free at the finger's own clearance), if there is one: the nodes and
+    edges of those paths added to ``free`` and ``edges`` (flat lattice indices)."""
+    n = free.size
+    src, dst, ln = edges
+    _, comp = csg.connected_components(_symmetric(src, dst, ln, n), directed=False)
+    ids = np.flatnonzero(free.ravel())
+    if len(ids) == 0 or len(np.unique(comp[ids])) < 2:
+        return free, edges
+    main = np.bincount(comp[ids]).argmax()
+    targets = ids[comp[ids] == main]
+    fs, fd, fl = _lattice_edges(narrow | free, spacing_m)
+    fine = _symmetric(fs, fd, fl, n)
+    coords = np.stack(np.unravel_index(np.arange(n), free.shape), axis=1) * spacing_m
+    free = free.copy()
+    add_s, add_d = [src], [dst]
+    for c in np.unique(comp[ids]):
+        if c == main:
+            continue
+        dist, pred, _ = csg.dijkstra(fine, indices=ids[comp[ids] == c], min_only=True, return_predecessors=True,
+                                     limit=max_m)
+        t = targets[np.isfinite(dist[targets])]
+        if not len(t):
+            continue
+        path = [int(t[np.argmin(dist[t])])]
+        while pred[path[-1]] >= 0:
+            path.append(int(pred[path[-1]]))
+        path = np.array(path)
+        free.ravel()[path] = True
+        add_s.append(path[:-1])
+        add_d.append(path[1:])
+    s_all, d_all = np.concatenate(add_s), np.concatenate(add_d)
+    lens = np.concatenate([ln, np.linalg.norm(coords[s_all[len(src):]] - coords[d_all[len(src):]], axis=1)])
+    return free, (s_all, d_all, lens)
+
+
 def build_free_graph(
     lattice: MapLattice,
     margin_m: float,
@@ -173,6 +244,8 @@ def build_free_graph(
     min_z_m: float = -np.inf,
     p_inside_max: float | None = None,
     clearance: str = "mean",
+    bridge_clearance_m: float = 0.0,
+    bridge_max_m: float = 0.0,
 ) -> FreeSpaceGraph:
     """Free-space graph of a lattice (see the module docstring for the rules).
 
@@ -183,6 +256,10 @@ def build_free_graph(
         min_z_m: 3D only: lowest allowed node height (table + margin + tip radius).
         p_inside_max: if set, also drop nodes with Φ(−μ/σ) above it.
         clearance: 'distance' (to the estimated surface) or 'mean' (μ); see the module docstring.
+        bridge_clearance_m, bridge_max_m: with ``bridge_max_m > 0``, a component of free space cut off
+            from the largest (the estimate narrows a concavity's mouth below twice the margin) is joined
+            to it by the shortest lattice path, at most ``bridge_max_m`` long, through nodes with
+            clearance ≥ ``bridge_clearance_m`` (the finger's own room); those nodes join the graph.
     """
     mu = lattice.mean_m
     if clearance == "distance":
@@ -193,43 +270,24 @@ def build_free_graph(
         cl = mu
     else:
         raise ValueError(f"clearance must be one of {CLEARANCES}, got '{clearance}'")
-    free = cl >= margin_m
+    allowed = np.ones(lattice.shape, bool)
     if p_inside_max is not None:
         sigma = np.sqrt(np.maximum(lattice.variance_m2, 1e-300))
-        free &= ndtr(-mu / sigma) <= p_inside_max
+        allowed &= ndtr(-mu / sigma) <= p_inside_max
     if lattice.dim == 3:
-        free &= (lattice.axes[2] >= min_z_m)[None, None, :]
+        allowed &= (lattice.axes[2] >= min_z_m)[None, None, :]
     if shell_m > 0:
-        free &= cl <= margin_m + shell_m
-    shape = lattice.shape
-    d = lattice.dim
+        allowed &= cl <= margin_m + shell_m
+    free = allowed & (cl >= margin_m)
+    edges = _lattice_edges(free, lattice.spacing_m)
+    if bridge_max_m > 0 and bridge_clearance_m < margin_m:
+        free, edges = _bridge(free, edges, allowed & (cl >= bridge_clearance_m), bridge_max_m, lattice.spacing_m)
     node_of_grid = np.full(free.size, -1, dtype=np.int64)
     grid_of_node = np.flatnonzero(free.ravel())
     node_of_grid[grid_of_node] = np.arange(len(grid_of_node))
     xyz = lattice.grid_xyz()[grid_of_node]
-    padded = np.pad(free, 1, constant_values=False)
-    strides = np.array([int(np.prod(shape[k + 1:])) for k in range(d)])
-    spacing = lattice.spacing_m
-    rows, cols, lens = [], [], []
-    for off in itertools.product((-1, 0, 1), repeat=d):
-        if off <= (0,) * d:  # each undirected edge once: lexicographically positive offsets
-            continue
-        box = free.copy()
-        for sub in itertools.product(*[(0, o) if o else (0,) for o in off]):
-            if any(sub):
-                box &= _view(padded, sub, shape)
-        src = np.flatnonzero(box.ravel())
-        dst = src + int(np.dot(off, strides))
-        rows.append(node_of_grid[src])
-        cols.append(node_of_grid[dst])
-        lens.append(np.full(len(src), float(np.linalg.norm(np.array(off) * spacing))))
-    r = np.concatenate(rows) if rows else np.zeros(0, np.int64)
-    c = np.concatenate(cols) if cols else np.zeros(0, np.int64)
-    ln = np.concatenate(lens) if lens else np.zeros(0)
-    n = len(grid_of_node)
-    length = sp.coo_matrix(
-        (np.concatenate([ln, ln]), (np.concatenate([r, c]), np.concatenate([c, r]))), shape=(n, n)
-    ).tocsr()
+    src, dst, ln = edges
+    length = _symmetric(node_of_grid[src], node_of_grid[dst], ln, len(grid_of_node))
     return FreeSpaceGraph(
         lattice=lattice, free=free, node_of_grid=node_of_grid, grid_of_node=grid_of_node,
         xyz=xyz, length_m=length, margin_m=float(margin_m),

@@ -79,6 +79,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                        "its approach axis from up to this far out along the normal, keeping only the finger's "
                        "own clearance on that segment (tactile_planner.pocket; 0 = off)", {"ge": 0.0}),
     "pocket_gap_m": (0.002, "skin clearance from the estimated surface on a pocket's entry segment", {"ge": 0.0}),
+    "pocket_link_m": (0.06, "2D: free space the estimate cuts off from the rest (a concavity whose mouth it narrows "
+                      "below twice the margin) is joined to it by the shortest lattice path up to this long that "
+                      "keeps the finger's own clearance, tip_radius_m + pocket_gap_m (tactile_planner.graph; 0 = off)",
+                      {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -387,8 +391,11 @@ class TouchPlanner:
                 hard |= mask
 
         p_in = float(p["p_inside_max"])
+        finger_m = float(p["tip_radius_m"]) + float(p["pocket_gap_m"])
+        # 2D: free space the estimate cuts off behind a narrowed mouth is bridged through it (docs/planner.md)
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
-                                 float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]))
+                                 float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]),
+                                 finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0)
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:
@@ -416,15 +423,14 @@ class TouchPlanner:
         # run ended on "10 unreachable goals in a row", docs/benchmarks.md)
         if dim == 2 and pocket.any() and float(p["pocket_entry_m"]) > 0:
             e_xyz, e_node, e_len = pocket_entries(graph, pretouch[pocket], normal[pocket], float(p["pocket_entry_m"]),
-                                                  float(p["tip_radius_m"]) + float(p["pocket_gap_m"]),
-                                                  int(p["attach_reach"]))
+                                                  finger_m, int(p["attach_reach"]), allowed=comp == comp[start])
             got = e_node >= 0
-            got[got] = comp[e_node[got]] == comp[start]
             rows = np.flatnonzero(pocket)[got]
             entry[rows] = e_xyz[got]
             term_node[rows] = e_node[got]
             term_len[rows] = e_len[got] + np.linalg.norm(e_xyz[got] - pretouch[rows], axis=1)
             reachable[rows] = True
+        if pocket.any():
             for k in ("no free pre-touch point", "last segment not free", "in another free-space component than the tip"):
                 if k in why:
                     why[k] = why[k] & ~reachable

@@ -23,10 +23,12 @@ from .graph import FreeSpaceGraph
 
 
 def pocket_entries(graph: FreeSpaceGraph, pretouch_xyz: np.ndarray, normal_xyz: np.ndarray, max_back_m: float,
-                   min_clearance_m: float, reach: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   min_clearance_m: float, reach: int = 2,
+                   allowed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For (M, 3) pre-touch points and unit normals: the entry point ``pretouch + k h n`` (h = the
     lattice step, smallest k ≥ 1 with k h ≤ ``max_back_m``) that attaches to a free node within
-    ``reach`` cells with a margin-free last segment, and whose segment to the pre-touch point keeps
+    ``reach`` cells (among the ``allowed`` nodes, (N,) bool, if given: the tip's component) with a
+    margin-free last segment, and whose segment to the pre-touch point keeps
     clearance ≥ ``min_clearance_m``. Returns entry (M, 3), its node (M,) and the node-to-entry
     length (M,) in m; node −1 (entry NaN, length inf) where there is none."""
     pre = np.asarray(pretouch_xyz, float).reshape(-1, 3)
@@ -45,7 +47,7 @@ def pocket_entries(graph: FreeSpaceGraph, pretouch_xyz: np.ndarray, normal_xyz: 
         if not len(idx):
             break
         cand = pre[idx] + k * h * n[idx]
-        nd, dist = graph.attach(cand, reach)
+        nd, dist = graph.attach(cand, reach, allowed)
         ok = nd >= 0
         if ok.any():
             ok[ok] = graph.segments_free(graph.xyz[nd[ok]], cand[ok])
