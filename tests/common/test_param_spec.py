@@ -127,6 +127,8 @@ def test_every_package_params_file_names_only_declared_parameters():
      "an empty box (max must exceed min on every axis; not on z)"),
     ("gpis_estimator:\n  ros__parameters:\n    kernel:\n      R_m: 0.1\n",
      "gpis_estimator.kernel.R_m = 0.1: must be 0 (auto) or at least the workspace diagonal"),
+    ("gpis_estimator:\n  ros__parameters:\n    method: local\n    kernel:\n      fit: true\n",
+     "gpis_estimator.kernel.fit = true with method 'local': the fit rebuilds one exact GP"),
     ("gpis_estimator:\n  ros__parameters:\n    plane_z_m: 0.5\n",
      "gpis_estimator.plane_z_m = 0.5: must lie in the workspace's z range [0, 0.22]"),
     ("/**:\n  ros__parameters:\n    start_tip_xyz_m: [0.33, 0.0, 0.005]\n",

@@ -11,7 +11,8 @@ is allowed:
 - settings that contradict each other once merged: an empty or inverted
   box, a start position outside the arm's safety box or below the table
   clearance, a contact hysteresis upside down, the planner's margin that
-  leaves no free pre-touch point, a thin-plate R below the workspace diagonal.
+  leaves no free pre-touch point, a thin-plate R below the workspace diagonal,
+  ``kernel.fit`` with the local GP path.
 """
 
 from __future__ import annotations
@@ -147,6 +148,9 @@ def check_contradictions(exp: "Experiment") -> list[str]:
             if float(g["kernel.R_m"]) < diag:
                 errors.append(f"gpis_estimator.kernel.R_m = {g['kernel.R_m']}: must be 0 (auto) or at least the "
                               f"workspace diagonal {diag:.4f} m")
+        if bool(g["kernel.fit"]) and str(g["method"]) != "exact":
+            errors.append(f"gpis_estimator.kernel.fit = true with method '{g['method']}': the fit rebuilds one exact "
+                          f"GP; set method: exact, or kernel.fit: false")
         if dim == 2 and not errors and not lo[2] <= float(g["plane_z_m"]) <= hi[2]:
             errors.append(f"gpis_estimator.plane_z_m = {g['plane_z_m']}: must lie in the workspace's z range "
                           f"[{lo[2]:g}, {hi[2]:g}]")
