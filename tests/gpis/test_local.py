@@ -25,26 +25,15 @@ class DenseGP:
     """Exact posterior of the estimator's model by one dense Cholesky of all rows."""
 
     def __init__(self, est: ShapeEstimator) -> None:
-        X, t, y, nv = [], [], [], []
-        for x, value, var, normal, normal_var in est._obs:
-            X.append(x[None])
-            t.append([VALUE])
-            y.append([value])
-            nv.append([var])
-            if normal is not None:
-                Xg, tg = gradient_rows(x[None])
-                X.append(Xg)
-                t.append(tg)
-                y.append(normal)
-                nv.append(np.full(est.dim, normal_var))
-        self.X, self.t = np.vstack(X), np.concatenate(t)
+        rows = est.fit_rows()  # every row the estimator took, in its order (point, type, value, noise)
+        self.X, self.t = rows.X, rows.t
         self.kernel, self.mean_fn, self.dim = est.kernel, est.gp.mean_fn, est.dim
         mv, mg = self.mean_fn(self.X)
         prior = np.where(self.t < 0, mv, mg[np.arange(len(self.t)), np.maximum(self.t, 0)])
         K = cross_cov(self.kernel, self.X, self.t, self.X, self.t)
-        K[np.diag_indices_from(K)] += np.concatenate(nv) + est.gp.jitter
+        K[np.diag_indices_from(K)] += rows.noise + est.gp.jitter
         self.L = np.linalg.cholesky(K)
-        self.alpha = solve_triangular(self.L.T, solve_triangular(self.L, np.concatenate(y) - prior, lower=True))
+        self.alpha = solve_triangular(self.L.T, solve_triangular(self.L, rows.y - prior, lower=True))
 
     def mean_grad(self, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Xg, tg = gradient_rows(Q)
