@@ -188,3 +188,27 @@ def test_the_planner_goes_in_and_out_through_a_narrow_mouth(pocket_link_m):
     assert out.ok, out.message
     np.testing.assert_allclose(out.pretouch_xyz, [0.5, -0.07, Z], atol=1e-9)
     assert skin_gap(out.path_xyz) > 0.0
+
+
+def test_a_bridge_through_other_cut_off_space_adds_each_edge_once():
+    """Two cavities behind one another (a 26 mm mouth, then a 26 mm neck): the inner one's bridge runs
+    through the outer cavity's free space, along edges the graph already has; no edge may appear twice
+    (the sparse matrix would add their lengths). Oracle: every edge length is a lattice step's length."""
+    def sdf(p):
+        block = _box_sdf(p, [0.40, -0.09], [0.60, 0.03])
+        cavity = np.minimum.reduce([
+            _box_sdf(p, [0.46, -0.03], [0.54, 0.01]), _box_sdf(p, [0.487, 0.0], [0.513, 0.2]),  # outer + mouth
+            _box_sdf(p, [0.487, -0.045], [0.513, -0.02]), _box_sdf(p, [0.46, -0.085], [0.54, -0.04])])  # neck + inner
+        return np.maximum(block, -cavity)
+
+    ax = (np.linspace(0.35, 0.65, 160), np.linspace(-0.15, 0.15, 160))
+    X, Y = np.meshgrid(*ax, indexing="ij")
+    lat = MapLattice(axes=ax, mean_m=sdf(np.stack([X, Y], axis=-1)), variance_m2=np.full(X.shape, 1e-6), plane_z_m=Z)
+    plain = build_free_graph(lat, 0.015, 0.03, -np.inf, None, "distance")
+    graph = build_free_graph(lat, 0.015, 0.03, -np.inf, None, "distance", 0.012, 0.1)
+    assert csg.connected_components(plain.length_m, directed=False)[0] >= 3
+    assert csg.connected_components(graph.length_m, directed=False)[0] == 1
+    h = float(np.min(lat.spacing_m))
+    steps = [h * np.sqrt(k) for k in (1, 2)]
+    lengths = graph.length_m.data
+    assert np.all(np.min(np.abs(lengths[:, None] - np.array(steps)[None, :]), axis=1) < 1e-9)

@@ -216,7 +216,8 @@ def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
     fine = _symmetric(fs, fd, fl, n)
     coords = np.stack(np.unravel_index(np.arange(n), free.shape), axis=1) * spacing_m
     free = free.copy()
-    add_s, add_d = [src], [dst]
+    add_s: list[np.ndarray] = [np.zeros(0, np.int64)]
+    add_d: list[np.ndarray] = [np.zeros(0, np.int64)]
     for c in np.unique(comp[ids]):
         if c == main:
             continue
@@ -232,9 +233,16 @@ def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
         free.ravel()[path] = True
         add_s.append(path[:-1])
         add_d.append(path[1:])
-    s_all, d_all = np.concatenate(add_s), np.concatenate(add_d)
-    lens = np.concatenate([ln, np.linalg.norm(coords[s_all[len(src):]] - coords[d_all[len(src):]], axis=1)])
-    return free, (s_all, d_all, lens)
+    new_s, new_d = np.concatenate(add_s), np.concatenate(add_d)
+    # each edge once: a path may run along edges the graph has (another cut-off component's) or another path's
+    key = np.minimum(new_s, new_d) * n + np.maximum(new_s, new_d)
+    _, first = np.unique(key, return_index=True)
+    keep = np.zeros(len(key), bool)
+    keep[first] = True
+    keep &= ~np.isin(key, np.minimum(src, dst) * n + np.maximum(src, dst))
+    new_s, new_d = new_s[keep], new_d[keep]
+    lens = np.concatenate([ln, np.linalg.norm(coords[new_s] - coords[new_d], axis=1)])
+    return free, (np.concatenate([src, new_s]), np.concatenate([dst, new_d]), lens)
 
 
 def build_free_graph(
