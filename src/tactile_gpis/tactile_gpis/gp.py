@@ -308,11 +308,9 @@ class GPIS:
             self._beta[: self.n] = solve_triangular(self.L, self.resid, lower=True, check_finite=False)
         if self._eval is not None:
             self._eval_prior = mean_fn(self._eval)[0]
-            self._eval_mean = self._eval_prior.copy()
-            for b, block in enumerate(self._V):
-                s, e = b * _V_BLOCK_ROWS, min(self.n, (b + 1) * _V_BLOCK_ROWS)
-                if e > s:
-                    self._eval_mean += np.einsum("bm,b->m", block[: e - s], self.beta[s:e])
+            mean = self._eval_prior.copy()[None, :]
+            self._v_subtract_product(mean, -self.beta[:, None])  # m(M) + V^T beta
+            self._eval_mean = mean[0]
 
     # -- evaluation set ------------------------------------------------------
     def set_eval_points(self, M: np.ndarray) -> None:

@@ -214,7 +214,6 @@ def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
     targets = ids[comp[ids] == main]
     fs, fd, fl = _lattice_edges(narrow | free, spacing_m)
     fine = _symmetric(fs, fd, fl, n)
-    coords = np.stack(np.unravel_index(np.arange(n), free.shape), axis=1) * spacing_m
     free = free.copy()
     add_s: list[np.ndarray] = [np.zeros(0, np.int64)]
     add_d: list[np.ndarray] = [np.zeros(0, np.int64)]
@@ -241,7 +240,8 @@ def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
     keep[first] = True
     keep &= ~np.isin(key, np.minimum(src, dst) * n + np.maximum(src, dst))
     new_s, new_d = new_s[keep], new_d[keep]
-    lens = np.concatenate([ln, np.linalg.norm(coords[new_s] - coords[new_d], axis=1)])
+    step = np.stack(np.unravel_index(new_s, free.shape), axis=1) - np.stack(np.unravel_index(new_d, free.shape), axis=1)
+    lens = np.concatenate([ln, np.linalg.norm(step * spacing_m, axis=1)])
     return free, (np.concatenate([src, new_s]), np.concatenate([dst, new_d]), lens)
 
 

@@ -430,7 +430,6 @@ class TouchPlanner:
             term_node[rows] = e_node[got]
             term_len[rows] = e_len[got] + np.linalg.norm(e_xyz[got] - pretouch[rows], axis=1)
             reachable[rows] = True
-        if pocket.any():
             for k in ("no free pre-touch point", "last segment not free", "in another free-space component than the tip"):
                 if k in why:
                     why[k] = why[k] & ~reachable
