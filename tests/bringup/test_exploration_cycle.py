@@ -129,6 +129,23 @@ def test_a_late_answer_after_a_resend_is_taken_and_duplicates_are_ignored():
     assert r.cycle.phase is Phase.TOUCHING and len(r.sent) == 2
 
 
+def test_a_report_before_the_answer_is_kept_and_the_request_sent_again_at_once():
+    """The planner died after its goal went out and before its answer did: the commander ran the touch."""
+    r = Rig(answer_timeout_s=15.0)
+    r.cycle.on_tip(START)
+    asked = r.sent[-1]
+    r.cycle.on_observation(5, np.zeros(1))
+    r.report(obs_ns=5)
+    assert r.cycle.phase is Phase.PLANNING and not r.run.touches
+    assert len(r.sent) == 2 and r.sent[1] == asked  # at once, not after answer_timeout_s
+    r.report(obs_ns=5)  # the commander's report again: no second re-send
+    assert len(r.sent) == 2
+    r.answer(asked)  # the restarted planner's answer to the re-send
+    assert len(r.run.touches) == 1 and r.sent[-1].min_map_stamp_ns == 5 and r.sent[-1].request_id > asked.request_id
+    r.answer()  # the next touch: no early report left over
+    assert r.cycle.phase is Phase.TOUCHING and len(r.run.touches) == 1
+
+
 def test_answers_and_reports_of_other_requests_are_ignored():
     r = Rig()
     r.cycle.on_tip(START)

@@ -12,8 +12,8 @@ from rclpy.duration import Duration
 from std_msgs.msg import Header
 
 from tactile_common import stamps
-from tactile_common.cycle import PlanRequest
-from tactile_common.cycle_msgs import answer_from_msg, request_msg
+from tactile_common.cycle import PlanRequest, TouchOutcome, TouchReport
+from tactile_common.cycle_msgs import answer_from_msg, report_msg, request_msg
 from tactile_common import qos, topics
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_planner.synthetic import sphere_map
@@ -105,3 +105,30 @@ def test_goal_and_path_for_a_request(ros_graph):
     pub_req.publish(request_msg(PlanRequest(request_id=9, min_map_stamp_ns=0)))
     ros_graph.wait_for(lambda: any(answer_from_msg(s).request_id == 9 for s in status), 20, "answer to request 9")
     assert not any(answer_from_msg(s).request_id == 3 for s in status)
+
+
+def test_a_restarted_planner_answers_the_resent_request_whose_touch_already_ended(ros_graph):
+    """The old planner's goal went out and was run, its answer died with it: the touch has ended but the
+    explorer still waits. The request handed over by the durable history is skipped (its touch ended);
+    the explorer's re-send of it is answered, from the request's own start."""
+    ros_graph.start("planner", ["soc_planner", "--ros-args", "--params-file", str(CONFIG)])
+    node = ros_graph.node
+    status = ros_graph.collect("/planner/status", DiagnosticStatus, qos.EVENTS)
+    pub_map = node.create_publisher(type(to_pointcloud2(sphere_map(8, 2)[:0], "world")), topics.VARIANCE_MAP, qos.MAP)
+    pub_req = node.create_publisher(DiagnosticStatus, "/planner/request", qos.EVENTS)
+    pub_done = node.create_publisher(DiagnosticStatus, topics.TOUCH_DONE, qos.EVENTS)
+    ros_graph.wait_for(lambda: all(p.get_subscription_count() > 0 for p in (pub_map, pub_req, pub_done))
+                       and status.publishers, 20, "planner subscriptions and writers")
+    pub_map.publish(to_pointcloud2(sphere_map(64, 2, seed=3), "world", stamp=Time(sec=5)))
+    pub_done.publish(report_msg(TouchReport(7, TouchOutcome.CONTACT, "", 6_000_000_000, 0.1, 2.0)))
+    assert pub_map.wait_for_all_acked(Duration(seconds=20)) and pub_done.wait_for_all_acked(Duration(seconds=20))
+    request = PlanRequest(request_id=7, min_map_stamp_ns=5_000_000_000, start_xyz_m=(0.40, -0.10, 0.06),
+                          visited_xyz_m=(), excluded_xyz_m=())
+    pub_req.publish(request_msg(request))  # as handed over: skipped
+    assert pub_req.wait_for_all_acked(Duration(seconds=20))
+    ros_graph.observe(1.0, "no answer to a request whose touch has ended")
+    assert not status
+    pub_req.publish(request_msg(request))  # the explorer's re-send: answered
+    ros_graph.wait_for(lambda: status, 20, "the answer to the re-sent request")
+    answer = answer_from_msg(status[0])
+    assert answer.request_id == 7 and answer.ok, answer

@@ -25,6 +25,11 @@ is waited for forever:
   seconds (a rig that stalls, a node restarting) does not use up every retry
   at once;
 - ``unreachable``: a new request (the planner excludes that target);
+- the commander's report of the touch asked for comes before the planner's
+  answer (the planner died after its goal went out and before its answer
+  did): the report is kept, and the request is sent again at once (a
+  restarted planner answers a re-sent request whose touch has ended:
+  ``tactile_planner.request_inbox``);
 - a planner that died and was restarted: every request carries the run's
   history (the targets chosen so far and those reported unreachable, from
   the answers and reports), so its answer is the one the dead planner
@@ -98,6 +103,7 @@ class ExplorationCycle:
         self.request: Optional[PlanRequest] = None
         self.goal_stamp_ns: Optional[int] = None
         self.report: Optional[TouchReport] = None  # of the current goal, waiting for its observation
+        self._early_report: Optional[TouchReport] = None  # of the current request, before its answer
         self.last_obs_stamp_ns = 0
         self.plan_from_xyz: Optional[tuple] = tuple(map(float, self.start_xyz_m))  # nominal start of the next touch
         self.retries = 0
@@ -141,6 +147,9 @@ class ExplorationCycle:
             self.goal_stamp_ns = answer.goal_stamp_ns
             self._decision_ms[answer.goal_stamp_ns] = answer.decision_ms
             self._enter(Phase.TOUCHING)
+            early, self._early_report = self._early_report, None
+            if early is not None and early.goal_stamp_ns == self.goal_stamp_ns:
+                self.on_report(early)
         elif answer.status == "timeout":  # the planner waited for a map in vain: ask again
             self._retry(f"planner: {answer.detail}", resend=True)
         else:
@@ -161,6 +170,13 @@ class ExplorationCycle:
             self._complete()
 
     def on_report(self, report: TouchReport) -> None:
+        if (self.phase is Phase.PLANNING and self.request is not None and self._early_report is None
+                and report.goal_stamp_ns == self.request.request_id):
+            self._early_report = report  # the touch ended, its answer was lost: ask again now
+            self.log.warning(f"touch {report.goal_stamp_ns} ended before the planner's answer to it arrived: "
+                             f"sending request {report.goal_stamp_ns} again")
+            self._publish()
+            return
         if self.phase is not Phase.TOUCHING or report.goal_stamp_ns != self.goal_stamp_ns or self.report is not None:
             return  # another goal's report, or this one's again
         if report.outcome is TouchOutcome.UNREACHABLE:
@@ -243,7 +259,7 @@ class ExplorationCycle:
         history = (tuple(self._targets.values()), tuple(self._excluded)) if self._history_known else (None, None)
         self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history,
                                    misses_before_contact(self.run.touches))
-        self.goal_stamp_ns, self.report = None, None
+        self.goal_stamp_ns, self.report, self._early_report = None, None, None
         self._enter(Phase.PLANNING)
         self._publish()
 

@@ -10,18 +10,15 @@ y-axis) and its length (the path's last segment, the slide marker):
 :mod:`tactile_common.slide_goal`.
 
 Delivery (docs/architecture.md): goal and path are stamped with the request
-id they answer. A request seen again (re-sent, or handed over by the durable
-topic after a restart) gets its stored answer again, unchanged; of the
-requests waiting for a map only the newest is answered (older ones are
-superseded), and a request whose touch has ended is not answered again. The
-planner's memory (targets so far, those unreachable) comes with each
-request, so a restarted planner answers the current request as the dead one
-would have; without it (an older client), what this node remembers.
+id they answer; which requests are answered, and how, is
+:class:`tactile_planner.request_inbox.RequestInbox`. The planner's memory
+(targets so far, those unreachable) comes with each request, so a restarted
+planner answers the current request as the dead one would have; without it
+(an older client), what this node remembers.
 """
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from typing import Optional
 
 import numpy as np
@@ -44,8 +41,7 @@ from tactile_common.stamps import stamp_ns, time_from_ns
 from .maps import MapError, parse_variance_map
 from .planner import NODE_PARAMETERS, PARAMETERS, PlanResult, TouchPlanner
 from .pose import approach_rotation, quaternion_xyzw
-
-KEEP_ANSWERS = 200  # answered requests kept for re-sending
+from .request_inbox import RequestInbox, Verdict
 
 
 class SocPlannerNode(Node):
@@ -61,11 +57,9 @@ class SocPlannerNode(Node):
         self.map_stamp_ns = -1
         self.tip: Optional[np.ndarray] = None
         self.request: Optional[tuple[PlanRequest, int]] = None  # (pending request, received at clock ns)
-        self.newest_request_id = -1
-        self.answers: OrderedDict[int, tuple] = OrderedDict()  # request id -> (goal, path, status) messages
+        self.inbox = RequestInbox()  # answers: (goal, path, status) messages
         self.goal_targets: dict[int, np.ndarray] = {}
         self.excluded: dict[int, np.ndarray] = {}  # goal stamp -> target reported unreachable
-        self.done_goals: set[int] = set()  # goal stamps (= request ids) whose touch has ended
         self.invalid_inputs = 0
         self.pub_goal = self.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
         self.pub_path = self.create_publisher(Path, topics.PATH, qos.EVENTS)
@@ -112,16 +106,13 @@ class SocPlannerNode(Node):
             self.invalid_inputs += 1
             self.get_logger().warn(f"invalid plan request ignored: {exc}")
             return
-        if req.request_id in self.done_goals and req.request_id not in self.answers:
-            return  # its touch has ended (a restarted planner handed the request history): no answer needed
-        if req.request_id in self.answers:  # seen before: the same answer again
-            for pub, answer in zip((self.pub_goal, self.pub_path, self.pub_status), self.answers[req.request_id]):
-                if answer is not None:
-                    pub.publish(answer)
+        verdict, answer = self.inbox.on_request(req.request_id)
+        if verdict is Verdict.RESEND_ANSWER:
+            for pub, msg_out in zip((self.pub_goal, self.pub_path, self.pub_status), answer):
+                if msg_out is not None:
+                    pub.publish(msg_out)
+        if verdict is not Verdict.PLAN:
             return
-        if req.request_id < self.newest_request_id:
-            return  # superseded by a newer request
-        self.newest_request_id = req.request_id
         self.request = (req, self.get_clock().now().nanoseconds)
         self.try_plan()
 
@@ -132,7 +123,7 @@ class SocPlannerNode(Node):
             self.invalid_inputs += 1
             self.get_logger().warn(f"invalid touch_done ignored: {exc}")
             return
-        self.done_goals.add(report.goal_stamp_ns)
+        self.inbox.touch_ended(report.goal_stamp_ns)
         if report.outcome is not TouchOutcome.UNREACHABLE or report.goal_stamp_ns in self.excluded:
             return
         target = self.goal_targets.get(report.goal_stamp_ns)
@@ -169,9 +160,7 @@ class SocPlannerNode(Node):
             self.get_logger().warn(f"no goal for request {req.request_id}: {res.status}: {res.message}")
         status = self.status_msg(req.request_id, res.status, res.message, res)
         self.pub_status.publish(status)
-        self.answers[req.request_id] = (goal, path, status)
-        while len(self.answers) > KEEP_ANSWERS:
-            self.answers.popitem(last=False)
+        self.inbox.answered(req.request_id, (goal, path, status))
 
     def check_timeout(self) -> None:
         if self.request is None:
