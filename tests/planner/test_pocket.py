@@ -14,7 +14,7 @@ from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, VARIANCE_MAP_DTY
 from tactile_planner.graph import build_free_graph
 from tactile_planner.maps import MapLattice
 from tactile_planner.planner import TouchPlanner, load_params
-from tactile_planner.pocket import pocket_entries
+from tactile_planner.pocket import closer_pretouch, pocket_entries
 
 CONFIG = Path(__file__).resolve().parents[2] / "src/tactile_planner/config/soc_planner.yaml"
 Z = 0.06
@@ -78,22 +78,23 @@ def _as_map(lattice, cand_xyz, cand_normal):
     return np.concatenate([grid, c])
 
 
-@pytest.mark.parametrize("pocket_entry_m", [0.03, 0.0])
-def test_the_planner_touches_the_slot_bottom_through_its_entry(pocket_entry_m):
+@pytest.mark.parametrize("pocket_entry_m, narrow_penalty", [(0.03, 0.0), (0.0, 0.0), (0.0, 3.0)])
+def test_the_planner_touches_the_slot_bottom_through_its_entry(pocket_entry_m, narrow_penalty):
     lat = _lattice(0.013)
     cand = np.array([[0.5, 0.0, Z]])
     m = _as_map(lat, cand, np.array([[0.0, 1.0, 0.0]]))
     params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_entry_m=pocket_entry_m,
-                  pocket_link_m=pocket_entry_m)  # off: both ways into a pocket
+                  pocket_link_m=pocket_entry_m, narrow_penalty=narrow_penalty)  # all 0: every way into a pocket off
     res = TouchPlanner.from_params(params, seed=0).plan(m, np.array([0.40, 0.10, Z]))
-    if pocket_entry_m == 0:
+    if pocket_entry_m == 0 and narrow_penalty == 0:
         assert res.status == "all_unreachable" and "no free pre-touch point" in res.message, res.message
         return
     assert res.ok, res.message
     np.testing.assert_allclose(res.pretouch_xyz, [0.5, 0.02, Z], atol=1e-9)
     np.testing.assert_allclose(res.path_xyz[-1], res.pretouch_xyz)
-    last = res.path_xyz[-2]  # the entry: straight above, on the approach axis
-    assert abs(last[0] - 0.5) < 1e-9 and last[1] > 0.02
+    if pocket_entry_m > 0:
+        last = res.path_xyz[-2]  # the entry: straight above, on the approach axis
+        assert abs(last[0] - 0.5) < 1e-9 and last[1] > 0.02
     # the whole path keeps the finger off the slot's true walls (skin gap > 0), the graph part the margin
     s = np.linspace(0, 1, 100)[:, None]
     pts = np.vstack([a + s * (b - a) for a, b in zip(res.path_xyz[:-1, :2], res.path_xyz[1:, :2])])
@@ -162,15 +163,16 @@ def test_free_space_cut_off_behind_a_narrow_mouth_is_bridged_through_it():
         assert g.n_nodes == plain.n_nodes
 
 
-@pytest.mark.parametrize("pocket_link_m", [0.06, 0.0])
-def test_the_planner_goes_in_and_out_through_a_narrow_mouth(pocket_link_m):
+@pytest.mark.parametrize("pocket_link_m, narrow_penalty", [(0.06, 0.0), (0.0, 0.0), (0.0, 3.0)])
+def test_the_planner_goes_in_and_out_through_a_narrow_mouth(pocket_link_m, narrow_penalty):
     lat = _bottle_lattice()
     cand = np.array([[0.5, -0.03, Z], [0.5, -0.05, Z]])  # the cavity floor; the block's outer bottom face
     normals = np.array([[0.0, 1.0, 0.0], [0.0, -1.0, 0.0]])
-    params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_link_m=pocket_link_m)
+    params = dict(load_params(str(CONFIG)), strategy="uncertainty", search_quantile=0.0, pocket_link_m=pocket_link_m,
+                  narrow_penalty=narrow_penalty)
     m = _as_map(lat, cand[:1], normals[:1])
     res = TouchPlanner.from_params(params, seed=0).plan(m, np.array([0.40, 0.10, Z]))
-    if pocket_link_m == 0:
+    if pocket_link_m == 0 and narrow_penalty == 0:
         assert res.status == "all_unreachable" and "in another free-space component" in res.message, res.message
         return
     assert res.ok, res.message
@@ -212,3 +214,66 @@ def test_a_bridge_through_other_cut_off_space_adds_each_edge_once():
     steps = [h * np.sqrt(k) for k in (1, 2)]
     lengths = graph.length_m.data
     assert np.all(np.min(np.abs(lengths[:, None] - np.array(steps)[None, :]), axis=1) < 1e-9)
+
+
+def _channel_lattice(half_width_m, h=0.002, wall_half_m=0.02):
+    """Open space split by a wall (|x| ≤ wall_half_m about x = 0.5) pierced by a channel along y = 0. The
+    clearance field is written directly: ``half_width_m − |y|`` inside the wall's x range (the distance to
+    the channel's walls), 0.1 m elsewhere. Lattice step ``h``, with a row at y = 0."""
+    ax = (0.5 + h * np.arange(-40, 41), h * np.arange(-20, 21))
+    X, Y = np.meshgrid(*ax, indexing="ij")
+    in_wall = np.abs(X - 0.5) <= wall_half_m + 1e-12
+    mean = np.where(in_wall, half_width_m - np.abs(Y), 0.1)
+    return MapLattice(axes=ax, mean_m=mean, variance_m2=np.full(mean.shape, 1e-6), plane_z_m=Z), in_wall
+
+
+@pytest.mark.parametrize("penalty", [1.0, 3.0])
+def test_a_passage_narrower_than_the_margin_but_not_the_finger_is_a_path_at_its_price(penalty):
+    """Oracle: the only way through is the channel's centre row (13 mm of room: < the 15 mm margin, ≥ the
+    finger's 12 mm; one row off it has 11 mm). Its cost is the straight length plus (penalty − 1) × the
+    edges with an end in the channel: k nodes inside the wall, k + 1 such edges of one step each."""
+    h, margin, finger = 0.002, 0.015, 0.012
+    lat, in_wall = _channel_lattice(0.013, h)
+    a, b = np.array([0.44, 0.0, Z]), np.array([0.56, 0.0, Z])
+    walled = build_free_graph(lat, margin, 0.0, -np.inf, None, "mean")  # off: the margin is a wall
+    ia, ib = walled.nearest_node(a), walled.nearest_node(b)
+    assert not np.isfinite(csg.dijkstra(walled.length_m, indices=ia)[ib])
+    graph = build_free_graph(lat, margin, 0.0, -np.inf, None, "mean", finger, 0.0, penalty)
+    ia, ib = graph.nearest_node(a), graph.nearest_node(b)
+    np.testing.assert_allclose(graph.xyz[[ia, ib]], [a, b], atol=1e-12)
+    k = int(in_wall[:, 0].sum())  # channel nodes on the centre row
+    cost = csg.dijkstra(graph.length_m, indices=ia)[ib]
+    assert cost == pytest.approx(0.12 + (penalty - 1.0) * (k + 1) * h, rel=1e-9)
+    # through the channel a segment keeps the finger's room, not the margin (shortcuts keep the margin);
+    # the channel's nodes say which they keep, and a node without the finger's room is not in the graph
+    seg = np.array([[0.47, 0.0, Z]]), np.array([[0.53, 0.0, Z]])
+    assert graph.finger_m == finger and graph.margin_m == margin
+    assert graph.segments_free(*seg, clearance_m=finger)[0] and not graph.segments_free(*seg)[0]
+    inside, outside = graph.nearest_node(np.array([0.5, 0.0, Z])), ia
+    np.testing.assert_allclose(graph.node_clearance_m(np.array([inside, outside])), [finger, margin])
+    assert graph.node_of_grid[np.ravel_multi_index((40, 21), lat.shape)] == -1  # (0.5, 0.002): 11 mm
+    # a channel too narrow for the finger (11 mm of room) stays shut
+    shut = build_free_graph(_channel_lattice(0.011, h)[0], margin, 0.0, -np.inf, None, "mean", finger, 0.0, penalty)
+    assert not np.isfinite(csg.dijkstra(shut.length_m, indices=shut.nearest_node(a))[shut.nearest_node(b)])
+
+
+def test_a_side_wall_of_a_slot_gets_a_pre_touch_point_nearer_the_wall_where_the_finger_has_room():
+    """A 26 mm slot: at the full offset (standoff + radius = 20 mm) from its left wall the tip centre is
+    6 mm from the right wall; at most 26 − 12 = 14 mm out it keeps the finger's 12 mm from both. Oracle: the
+    slot's walls (x = 0.5 ± half width), not the planner's clearance."""
+    finger, full = 0.012, 0.02
+    graph = build_free_graph(_lattice(0.013), 0.015, 0.03, -np.inf, None, "distance")
+    h4 = float(np.min(graph.lattice.spacing_m)) / 4.0
+    wall = np.array([[0.5 - 0.013, 0.02, Z]])
+    n = np.array([[1.0, 0.0, 0.0]])
+    pre = closer_pretouch(graph, wall, n, full, 0.012, finger)
+    d = pre[0, 0] - wall[0, 0]
+    np.testing.assert_allclose(pre[0, 1:], wall[0, 1:])  # along the normal
+    assert 0.014 - h4 - 1e-3 <= d <= 0.014 + 1e-3  # the largest sampled offset with room (lattice tolerance)
+    # 22 mm: no offset between 12 and 20 mm leaves 12 mm to the other wall: the full one stays
+    narrow = build_free_graph(_lattice(0.011), 0.015, 0.03, -np.inf, None, "distance")
+    np.testing.assert_allclose(closer_pretouch(narrow, wall + [[0.002, 0, 0]], n, full, 0.012, finger),
+                               wall + [[0.002 + full, 0, 0]])
+    # a wall with room at the full offset keeps it
+    free_side = np.array([[0.56, 0.0, Z]])
+    np.testing.assert_allclose(closer_pretouch(graph, free_side, n, full, 0.012, finger), free_side + [[full, 0, 0]])

@@ -21,6 +21,14 @@ surface: the graph grows with the surface, not the workspace). Edges join 8
 (2D) / 26 (3D) neighbours and exist only when every lattice node of the box
 spanned by the edge is free, so the multilinear interpolation of c along an
 edge never drops below the margin.
+
+Narrow nodes (2D, ``narrow_penalty > 0``): a node with the finger's own room,
+c ≥ ``finger_m`` (tip radius + a small gap) but c < margin, is free too, and
+an edge with such an end counts ``narrow_penalty`` times its length: a slot
+the estimate narrows below twice the margin but not below the finger is a
+path, at a price, instead of a wall (docs/planner.md). Shortcuts still keep
+the margin; a candidate's last segment from a narrow node keeps the finger's
+room.
 """
 
 from __future__ import annotations
@@ -49,7 +57,9 @@ class FreeSpaceGraph:
         grid_of_node: graph node -> flat lattice index.
         xyz: (N, 3) node positions (m).
         length_m: symmetric CSR (N, N) of edge lengths (m).
-        margin_m: the clearance every node keeps from the estimated surface.
+        margin_m: the clearance paths keep from the estimated surface (nodes, shortcuts).
+        finger_m: the clearance the narrow nodes keep (``build_free_graph``'s ``narrow_penalty``), at most
+            ``margin_m``; equal to it without them.
         clearance_field_m: the clearance c on the lattice (lattice shape, m; see the module docstring).
     """
 
@@ -62,6 +72,11 @@ class FreeSpaceGraph:
     margin_m: float
     min_z_m: float
     clearance_field_m: np.ndarray | None = None
+    finger_m: float | None = None
+
+    @property
+    def finger_clearance_m(self) -> float:
+        return self.margin_m if self.finger_m is None else self.finger_m
 
     @property
     def n_nodes(self) -> int:
@@ -119,8 +134,10 @@ class FreeSpaceGraph:
             mu = np.where(p[:, 2] >= self.min_z_m - 1e-12, mu, -np.inf)
         return mu
 
-    def segments_free(self, a_xyz: np.ndarray, b_xyz: np.ndarray, step_m: float | None = None) -> np.ndarray:
-        """For each segment a→b ((S, 3) each), whether all samples keep μ ≥ margin."""
+    def segments_free(self, a_xyz: np.ndarray, b_xyz: np.ndarray, step_m: float | None = None,
+                      clearance_m: float | np.ndarray | None = None) -> np.ndarray:
+        """For each segment a→b ((S, 3) each), whether all samples keep c ≥ ``clearance_m`` (a scalar or
+        one per segment; default the margin)."""
         a = np.asarray(a_xyz, float).reshape(-1, 3)
         b = np.asarray(b_xyz, float).reshape(-1, 3)
         step = step_m if step_m is not None else float(np.min(self.lattice.spacing_m)) / 4.0
@@ -128,7 +145,16 @@ class FreeSpaceGraph:
         t = np.linspace(0.0, 1.0, max(n, 2))
         pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
         mu = self.clearance_m(pts.reshape(-1, 3)).reshape(len(a), -1)
-        return np.all(mu >= self.margin_m - 1e-9, axis=1)
+        need = np.broadcast_to(np.asarray(self.margin_m if clearance_m is None else clearance_m, float), (len(a),))
+        return np.all(mu >= need[:, None] - 1e-9, axis=1)
+
+    def node_clearance_m(self, node: np.ndarray) -> np.ndarray:
+        """The clearance each node keeps: the margin, or the finger's room at a narrow node."""
+        node = np.asarray(node, dtype=np.int64)
+        if self.finger_m is None:
+            return np.full(node.shape, self.margin_m)
+        field = (self.lattice.mean_m if self.clearance_field_m is None else self.clearance_field_m).ravel()
+        return np.where(field[self.grid_of_node[node]] >= self.margin_m, self.margin_m, self.finger_m)
 
 
 CLEARANCES = ("distance", "mean")
@@ -245,6 +271,17 @@ def _bridge(free: np.ndarray, edges: tuple, narrow: np.ndarray, max_m: float,
     return free, (np.concatenate([src, new_s]), np.concatenate([dst, new_d]), lens)
 
 
+def _narrow(allowed: np.ndarray, cl: np.ndarray, margin_m: float, finger_m: float, penalty: float,
+            spacing_m: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """Nodes where the finger fits (c ≥ ``finger_m``) and their lattice edges; an edge with an end
+    inside the margin (c < ``margin_m``) is ``penalty`` times its length (flat lattice indices)."""
+    free = allowed & (cl >= finger_m)
+    src, dst, ln = _lattice_edges(free, spacing_m)
+    flat = cl.ravel()
+    tight = (flat[src] < margin_m) | (flat[dst] < margin_m)
+    return free, (src, dst, np.where(tight, penalty * ln, ln))
+
+
 def build_free_graph(
     lattice: MapLattice,
     margin_m: float,
@@ -254,6 +291,7 @@ def build_free_graph(
     clearance: str = "mean",
     bridge_clearance_m: float = 0.0,
     bridge_max_m: float = 0.0,
+    narrow_penalty: float = 0.0,
 ) -> FreeSpaceGraph:
     """Free-space graph of a lattice (see the module docstring for the rules).
 
@@ -268,6 +306,12 @@ def build_free_graph(
             from the largest (the estimate narrows a concavity's mouth below twice the margin) is joined
             to it by the shortest lattice path, at most ``bridge_max_m`` long, through nodes with
             clearance ≥ ``bridge_clearance_m`` (the finger's own room); those nodes join the graph.
+        narrow_penalty: > 0 (with ``bridge_clearance_m < margin_m``): every node with the finger's room,
+            c ≥ ``bridge_clearance_m``, is free, and an edge with an end inside the margin counts
+            ``narrow_penalty`` × its length: paths may pass where the estimate leaves the finger room but not
+            the margin (a slot it narrows), at a price. Shortcuts keep the margin; a candidate's last
+            segment from a narrow node keeps the finger's room (``finger_m``); the bridge is not needed
+            (nothing with the finger's room is cut off).
     """
     mu = lattice.mean_m
     if clearance == "distance":
@@ -286,8 +330,14 @@ def build_free_graph(
         allowed &= (lattice.axes[2] >= min_z_m)[None, None, :]
     if shell_m > 0:
         allowed &= cl <= margin_m + shell_m
-    free = allowed & (cl >= margin_m)
-    edges = _lattice_edges(free, lattice.spacing_m)
+    finger_m = None
+    if narrow_penalty > 0 and bridge_clearance_m < margin_m:
+        free, edges = _narrow(allowed, cl, margin_m, bridge_clearance_m, narrow_penalty, lattice.spacing_m)
+        finger_m = float(bridge_clearance_m)
+        bridge_max_m = 0.0  # nothing with the finger's room is cut off
+    else:
+        free = allowed & (cl >= margin_m)
+        edges = _lattice_edges(free, lattice.spacing_m)
     if bridge_max_m > 0 and bridge_clearance_m < margin_m:
         free, edges = _bridge(free, edges, allowed & (cl >= bridge_clearance_m), bridge_max_m, lattice.spacing_m)
     node_of_grid = np.full(free.size, -1, dtype=np.int64)
@@ -300,5 +350,5 @@ def build_free_graph(
         lattice=lattice, free=free, node_of_grid=node_of_grid, grid_of_node=grid_of_node,
         xyz=xyz, length_m=length, margin_m=float(margin_m),
         min_z_m=float(min_z_m) if lattice.dim == 3 else -np.inf,
-        clearance_field_m=None if clearance == "mean" else cl,
+        clearance_field_m=None if clearance == "mean" else cl, finger_m=finger_m,
     )

@@ -24,7 +24,7 @@ from tactile_common.touch_geometry import MotionModel, TouchGeometry
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .maps import MapError, parse_variance_map
-from .pocket import pocket_entries
+from .pocket import closer_pretouch, pocket_entries
 from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
@@ -83,6 +83,13 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                       "below twice the margin) is joined to it by the shortest lattice path up to this long that "
                       "keeps the finger's own clearance, tip_radius_m + pocket_gap_m (tactile_planner.graph; 0 = off)",
                       {"ge": 0.0}),
+    "narrow_penalty": (3.0, "2D: paths may also pass where the estimate leaves the finger its own clearance "
+                       "(tip_radius_m + pocket_gap_m) but not the path margin (a slot it narrows); each metre of "
+                       "such an edge counts this many metres of travel (tactile_planner.graph; 0 = off: the "
+                       "margin is a wall, crossed only by pocket_link_m's bridges)", {"ge": 0.0}),
+    "min_standoff_m": (0.002, "2D: a pre-touch point without the finger's own room (tip_radius_m + pocket_gap_m: "
+                       "the side wall of a slot narrower than twice standoff + radius) moves in along its normal, "
+                       "down to this standoff (tactile_planner.pocket.closer_pretouch; ≥ standoff_m = off)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -392,14 +399,21 @@ class TouchPlanner:
 
         p_in = float(p["p_inside_max"])
         finger_m = float(p["tip_radius_m"]) + float(p["pocket_gap_m"])
-        # 2D: free space the estimate cuts off behind a narrowed mouth is bridged through it (docs/planner.md)
+        # 2D: passages the estimate narrows below the margin but not below the finger are paths at a price,
+        # or (narrow_penalty 0) free space it cuts off behind a narrowed mouth is bridged (docs/planner.md)
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
                                  float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]),
-                                 finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0)
+                                 finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0,
+                                 float(p["narrow_penalty"]) if dim == 2 else 0.0)
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:
             return PlanResult("no_free_space", "no lattice node is outside the safety margin", **base)
+        if dim == 2:  # a pre-touch point without the finger's room: nearer the surface, if that has it
+            tight = valid & (graph.clearance_m(pretouch) < finger_m - 1e-9)
+            if tight.any():
+                pretouch[tight] = closer_pretouch(graph, target[tight], normal[tight], geometry.pretouch_offset_m,
+                                                  geometry.tip_radius_m + float(p["min_standoff_m"]), finger_m)
         start = graph.nearest_node(tip)
         # outside the band/shell the tip joins the graph by a straight segment; it is
         # "snapped" when it is inside the margin or that segment is not free
@@ -412,8 +426,9 @@ class TouchPlanner:
         why["in another free-space component than the tip"] = other
         reachable = valid & ~hard & (term_node >= 0) & ~other
         if reachable.any():
+            node = np.maximum(term_node, 0)  # from a narrow node the finger's room will do
             why["last segment not free"] = reachable & ~graph.segments_free(
-                graph.xyz[np.maximum(term_node, 0)], pretouch)
+                graph.xyz[node], pretouch, clearance_m=graph.node_clearance_m(node))
             reachable &= ~why["last segment not free"]
         # a pre-touch point in a pocket of the estimate: entered along its approach axis (tactile_planner.pocket)
         entry = np.full((m, 3), np.nan)

@@ -59,3 +59,28 @@ def pocket_entries(graph: FreeSpaceGraph, pretouch_xyz: np.ndarray, normal_xyz: 
             entry[idx[take]], node[idx[take]], length[idx[take]] = cand[take], nd[take], dist[take]
             todo[idx[take]] = False
     return entry, node, length
+
+
+def closer_pretouch(graph: FreeSpaceGraph, target_xyz: np.ndarray, normal_xyz: np.ndarray, offset_m: float,
+                    min_offset_m: float, min_clearance_m: float) -> np.ndarray:
+    """Pre-touch points ``target + d n`` ((M, 3)) with the largest d ≤ ``offset_m`` (the full standoff +
+    tip radius), down to ``min_offset_m``, at which the tip centre keeps ``min_clearance_m`` from the
+    estimated surface (d sampled at a quarter lattice step); where no such d exists, the full one.
+
+    A side wall of a slot narrower than twice the full offset has no room at the full standoff (the
+    opposite wall is too close), but may have it nearer the wall. The commander's approach is the same
+    length from wherever the pre-touch point is, so the skin may go that much further beyond the
+    estimated surface: the depth is a bound, and the approach stops on contact."""
+    t = np.asarray(target_xyz, float).reshape(-1, 3)
+    n = np.asarray(normal_xyz, float).reshape(-1, 3)
+    out = t + offset_m * n
+    if len(t) == 0 or not min_offset_m < offset_m:
+        return out
+    h = float(np.min(graph.lattice.spacing_m)) / 4.0
+    d = np.arange(offset_m, min_offset_m - 1e-12, -h)  # (K,), largest first
+    pts = t[:, None, :] + d[None, :, None] * n[:, None, :]  # (M, K, 3)
+    room = graph.clearance_m(pts.reshape(-1, 3)).reshape(len(t), len(d)) >= min_clearance_m - 1e-9
+    has = room.any(axis=1)
+    first = np.argmax(room, axis=1)
+    out[has] = pts[np.flatnonzero(has), first[has]]
+    return out
