@@ -58,8 +58,8 @@ class FreeSpaceGraph:
         xyz: (N, 3) node positions (m).
         length_m: symmetric CSR (N, N) of edge lengths (m).
         margin_m: the clearance paths keep from the estimated surface (nodes, shortcuts).
-        finger_m: the clearance the narrow nodes keep (``build_free_graph``'s ``narrow_penalty``), at most
-            ``margin_m``; equal to it without them.
+        finger_m: the clearance the narrow nodes keep (``build_free_graph``'s ``narrow_penalty``), below
+            ``margin_m``; None without them.
         clearance_field_m: the clearance c on the lattice (lattice shape, m; see the module docstring).
     """
 
@@ -73,10 +73,6 @@ class FreeSpaceGraph:
     min_z_m: float
     clearance_field_m: np.ndarray | None = None
     finger_m: float | None = None
-
-    @property
-    def finger_clearance_m(self) -> float:
-        return self.margin_m if self.finger_m is None else self.finger_m
 
     @property
     def n_nodes(self) -> int:

@@ -87,8 +87,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                        "(tip_radius_m + pocket_gap_m) but not the path margin (a slot it narrows); each metre of "
                        "such an edge counts this many metres of travel (tactile_planner.graph; 0 = off: the "
                        "margin is a wall, crossed only by pocket_link_m's bridges)", {"ge": 0.0}),
-    "min_standoff_m": (0.002, "2D: a pre-touch point without the finger's own room (tip_radius_m + pocket_gap_m: "
-                       "the side wall of a slot narrower than twice standoff + radius) moves in along its normal, "
+    "min_standoff_m": (0.002, "2D: a pre-touch point without the finger's own room (tip_radius_m + pocket_gap_m; "
+                       "a side wall whose slot is narrower than standoff + radius + that room) moves in along its normal, "
                        "down to this standoff (tactile_planner.pocket.closer_pretouch; ≥ standoff_m = off)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),

@@ -67,8 +67,8 @@ def closer_pretouch(graph: FreeSpaceGraph, target_xyz: np.ndarray, normal_xyz: n
     tip radius), down to ``min_offset_m``, at which the tip centre keeps ``min_clearance_m`` from the
     estimated surface (d sampled at a quarter lattice step); where no such d exists, the full one.
 
-    A side wall of a slot narrower than twice the full offset has no room at the full standoff (the
-    opposite wall is too close), but may have it nearer the wall. The commander's approach is the same
+    A side wall of a slot narrower than the full offset plus ``min_clearance_m`` has no room at the full
+    standoff (the opposite wall is too close), but may have it nearer the wall. The commander's approach is the same
     length from wherever the pre-touch point is, so the skin may go that much further beyond the
     estimated surface: the depth is a bound, and the approach stops on contact."""
     t = np.asarray(target_xyz, float).reshape(-1, 3)
