@@ -118,13 +118,17 @@ class FreeSpaceGraph:
         best = np.where(np.isfinite(bd), best, -1)
         return best, bd
 
+    @property
+    def clearance_lattice_m(self) -> np.ndarray:
+        """The clearance c on the lattice nodes (lattice shape, m): the field, or μ with ``clearance="mean"``."""
+        return self.lattice.mean_m if self.clearance_field_m is None else self.clearance_field_m
+
     def clearance_m(self, p_xyz: np.ndarray) -> np.ndarray:
         """Multilinear interpolation of the clearance c at points (+inf outside the lattice: the
         object lies inside the estimator's workspace box; −inf below min z in 3D)."""
         lat = self.lattice
         p = np.asarray(p_xyz, float).reshape(-1, 3)
-        field = lat.mean_m if self.clearance_field_m is None else self.clearance_field_m
-        interp = RegularGridInterpolator(lat.axes, field, bounds_error=False, fill_value=np.inf)
+        interp = RegularGridInterpolator(lat.axes, self.clearance_lattice_m, bounds_error=False, fill_value=np.inf)
         mu = interp(p[:, : lat.dim])
         if lat.dim == 3:
             mu = np.where(p[:, 2] >= self.min_z_m - 1e-12, mu, -np.inf)
@@ -149,8 +153,8 @@ class FreeSpaceGraph:
         node = np.asarray(node, dtype=np.int64)
         if self.finger_m is None:
             return np.full(node.shape, self.margin_m)
-        field = (self.lattice.mean_m if self.clearance_field_m is None else self.clearance_field_m).ravel()
-        return np.where(field[self.grid_of_node[node]] >= self.margin_m, self.margin_m, self.finger_m)
+        c = self.clearance_lattice_m.ravel()[self.grid_of_node[node]]
+        return np.where(c >= self.margin_m, self.margin_m, self.finger_m)
 
 
 CLEARANCES = ("distance", "mean")
@@ -327,15 +331,15 @@ def build_free_graph(
     if shell_m > 0:
         allowed &= cl <= margin_m + shell_m
     finger_m = None
-    if narrow_penalty > 0 and bridge_clearance_m < margin_m:
+    if narrow_penalty > 0 and bridge_clearance_m < margin_m:  # no bridge: nothing with the finger's room is cut off
         free, edges = _narrow(allowed, cl, margin_m, bridge_clearance_m, narrow_penalty, lattice.spacing_m)
         finger_m = float(bridge_clearance_m)
-        bridge_max_m = 0.0  # nothing with the finger's room is cut off
     else:
         free = allowed & (cl >= margin_m)
         edges = _lattice_edges(free, lattice.spacing_m)
-    if bridge_max_m > 0 and bridge_clearance_m < margin_m:
-        free, edges = _bridge(free, edges, allowed & (cl >= bridge_clearance_m), bridge_max_m, lattice.spacing_m)
+        if bridge_max_m > 0 and bridge_clearance_m < margin_m:
+            free, edges = _bridge(free, edges, allowed & (cl >= bridge_clearance_m), bridge_max_m,
+                                  lattice.spacing_m)
     node_of_grid = np.full(free.size, -1, dtype=np.int64)
     grid_of_node = np.flatnonzero(free.ravel())
     node_of_grid[grid_of_node] = np.arange(len(grid_of_node))
