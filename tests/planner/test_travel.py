@@ -159,3 +159,20 @@ def test_lattice_paths_run_along_edges_from_start_to_the_pretouch_node(backend):
         assert np.all(adj[path[:-1], path[1:]])  # every step is a free-graph edge
         assert len(set(path.tolist())) == len(path)  # no loops
     assert not getattr(backend, "last_info", {}).get("path_fallback")
+
+
+@pytest.mark.parametrize("obstacle", [False, True])
+def test_the_path_at_a_high_rate_is_a_shortest_path(obstacle):
+    """The path (u ascended from the target, reversed) against Dijkstra's shortest length: as the
+    rate grows the controlled walk concentrates on shortest paths, round the disc too."""
+    graph = build_free_graph(lattice_2d(32, obstacle), margin_m=0.01)
+    nodes, lens = some_terminals(graph, 15, seed=4)
+    start = graph.nearest_node(np.array([0.0, 0.0, 0.06]))
+    backend = LmdpBackend(cost_rate_per_m=3000.0, max_rate_nats=300.0, solver="lu")  # no underflow
+    sol = backend.solve(graph, start, nodes, lens, np.ones(len(nodes), bool))
+    shortest = csg.dijkstra(graph.length_m, indices=start)[nodes]
+    for b in range(len(nodes)):
+        path = sol.path_nodes(b)
+        length = sum(graph.length_m[i, j] for i, j in zip(path[:-1], path[1:]))
+        assert length == pytest.approx(shortest[b], rel=1e-9, abs=1e-12)
+    assert not backend.last_info.get("path_fallback")

@@ -30,9 +30,12 @@ candidates whose u falls below 1e3·rtol·max(u) are reported
 (an upper bound, Dijkstra with step cost rate·ℓ + log D) and the shortest
 path length instead.
 
-The desirability of the chosen target b is z = W_b·(D − W_II)⁻¹ e_{node_b};
-the path follows the optimal controlled transition u*(x'|x) ∝ P(x'|x) z(x')
-greedily (z strictly increases along it, so it cannot loop).
+The path to the chosen target b needs no second solve. With symmetric W, a path's
+weight under the controlled walk, Π W_ij/D_i, is the same both ways up to the end
+points' degrees, so the most likely path from x₀ to b is the reversed most likely path
+from b to x₀, whose desirability is G(·, x₀) = u. The path walks from b greedily up
+W_xx'·u(x') (the controlled transition towards x₀) and is reversed; u strictly
+increases along it, so it cannot loop, and it ends at x₀.
 """
 
 from __future__ import annotations
@@ -178,21 +181,22 @@ class LmdpBackend:
         indptr, indices = w.indptr, w.indices
 
         def path(b: int) -> np.ndarray:
+            # Greedy ascent of u = (D − W_II)⁻¹ e_start from the target, reversed: no further solve.
+            # u(x) = G(x, start) rises strictly towards the start (off it, D_x u_x = Σ_y W_xy u_y
+            # with W ≤ 1, so the best neighbour holds more), so the walk cannot loop and ends there.
             target = tn[b]
-            e = np.zeros(graph.n_nodes)
-            e[target] = 1.0
-            w_term = np.exp(-rate * term_len_m[b])
-            z = solve(e) * w_term
-            nodes = [start]
-            cur = start
+            nodes = [target]
+            cur = target
             for _ in range(graph.n_nodes):
+                if cur == start:
+                    return np.array(nodes[::-1])
                 nb = indices[indptr[cur]:indptr[cur + 1]]
-                val = w.data[indptr[cur]:indptr[cur + 1]] * z[nb]
-                best = int(np.argmax(val)) if len(nb) else -1
-                if cur == target and (best < 0 or w_term >= val[best]):
-                    return np.array(nodes)
-                if best < 0 or (z[nb[best]] <= max(z[cur], 0.0) and cur != target):
-                    break  # no ascent: z below the solver's accuracy here
+                if not len(nb):
+                    break
+                val = w.data[indptr[cur]:indptr[cur + 1]] * u[nb]
+                best = int(np.argmax(val))
+                if u[nb[best]] <= max(u[cur], 0.0):
+                    break  # no ascent: u below the solver's accuracy here
                 cur = int(nb[best])
                 nodes.append(cur)
             self.last_info["path_fallback"] = True
