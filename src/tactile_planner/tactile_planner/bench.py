@@ -13,10 +13,14 @@ ratios are meaningful even on a loaded machine.
 
 The whole decision at scale (records with ``"kind": "decision"``, ``--decision-ns``,
 default 200, 1000, 2000 contacts with normals on a 5 cm circle / sphere, seeded): the
-GPIS estimator (default YAML, ``method`` exact and/or local, ``--decision-methods``) holds
-n contacts; then, ``--decision-reps`` times, one more contact is added (update_ms), the
-map is built (map_ms, ``ShapeEstimator.map_array``) and the planner decides on it
-(plan_ms, default planner parameters, tip outside the object); decision_ms = their sum,
+GPIS estimator (``method`` exact and/or local, ``--decision-methods``) holds n contacts;
+then, ``--decision-reps`` times, one more contact is added (update_ms), the map is built
+(map_ms, ``ShapeEstimator.map_array``) and the planner decides on it (plan_ms, tip outside
+the object); decision_ms = their sum, medians. Both take their parameters as a run of the
+mode does (package defaults, then ``explore_<mode>.yaml``: the 3D planner runs ``proposed``
+with the mean as clearance; the records name the strategy and clearance). Before
+2026-12-05 they took the package defaults (3D: ``info_travel``, distance clearance), which
+no 3D run uses; those figures in docs/benchmarks.md say so.
 medians. The exact path is run only up to ``--decision-exact-max-n`` contacts (its
 lattice state is O(n M): 3D with normals at n = 200 already holds 0.7 GB), by default in
 2D only (``--decision-exact-dims``). Each case
@@ -135,13 +139,35 @@ def run(repeat: int = 5, n_candidates: int = 200) -> list[dict]:
 DECISION_GOALS_MS = {(3, 1000): 50.0, (2, 2000): 15.0}  # issue 14: update + map + plan
 
 
+def mode_params(dim: int) -> tuple[dict, dict]:
+    """The estimator's and the planner's parameters as a run of this mode gets them: each package's
+    defaults, then ``tactile_bringup/config/explore_<mode>.yaml`` (3D: ``proposed`` with the mean as
+    clearance), each node's declared parameters only."""
+    from tactile_common.params_file import node_params, package_config
+    from tactile_gpis import estimator as gpis_estimator
+
+    from . import planner as soc_planner
+
+    mode_file = package_config("tactile_bringup", f"explore_{dim}d.yaml")
+    out = []
+    for package, filename, node, table in (
+            ("tactile_gpis", "gpis_estimator.yaml", "gpis_estimator", gpis_estimator.PARAMETERS),
+            ("tactile_planner", "soc_planner.yaml", "soc_planner", soc_planner.PARAMETERS)):
+        params = node_params([package_config(package, filename), mode_file], node)
+        out.append({k: v for k, v in params.items() if k in table})
+    return out[0], out[1]
+
+
 def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
     """Median update / map / plan times of the estimator + planner at n contacts (own process)."""
     from tactile_gpis.bench import contacts_on_sphere
     from tactile_gpis.estimator import ShapeEstimator
 
-    est = ShapeEstimator.from_params({"mode": f"{dim}d", "method": method, "duplicate_distance_m": 0.0})
-    planner = TouchPlanner.from_params({"mode": f"{dim}d"}, seed=seed)
+    gpis_params, planner_params = mode_params(dim)
+    est = ShapeEstimator.from_params({**gpis_params, "method": method, "duplicate_distance_m": 0.0})
+    # the benchmark's sphere floats 5 cm above the table (its contacts are all there is): the 3D
+    # default would answer that with a search under it (support_gap_m), not a decision on the map
+    planner = TouchPlanner.from_params({**planner_params, "support_gap_m": 0.0}, seed=seed)
     pts, nrm = contacts_on_sphere(np.random.default_rng(seed), n + reps, dim)
     for i in range(n):
         est.add_observation(pts[i], nrm[i], 1)
@@ -169,6 +195,7 @@ def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
         status = res.status
     med = lambda v: round(1e3 * float(np.median(v)), 2)  # noqa: E731
     return {"kind": "decision", "dim": dim, "n": n, "normals": True, "method": method,
+            "strategy": planner.params["strategy"], "clearance": planner.params["clearance"],
             "active_method": est.active_method, "update_ms": med(upd), "map_ms": med(mp_), "plan_ms": med(pl),
             "decision_ms": med(np.array(upd) + np.array(mp_) + np.array(pl)), "decision_cpu_ms": med(cpu),
             **{f"{k}_cpu_ms": med(np.array(parts_cpu)[:, j]) for j, k in enumerate(("update", "map", "plan"))},
