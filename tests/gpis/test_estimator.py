@@ -150,6 +150,31 @@ def test_lattice_inside_agrees_with_the_exact_inside_test():
     assert not est.lattice_inside(np.array([[0.0, 0.0], [0.9, 0.9]])).any()
 
 
+def test_the_refined_inside_test_keeps_a_thin_pole_the_lattice_shrinks():
+    """A standing pole of radius 7 mm on the 48³ lattice (6.4 mm cells): the interpolated lattice mean
+    misses much of its section, the refined test (the GP mean within two cells of the surface) agrees
+    with the GP's own inside test everywhere, and so with the true pole's section much better."""
+    est = ShapeEstimator.from_params({"mode": "3d"})
+    r, axis = 0.007, np.array([0.5, 0.0])
+    for z in np.linspace(0.03, 0.13, 11):
+        for a in np.linspace(0, 2 * np.pi, 8, endpoint=False) + 0.3 * z / 0.01:
+            n = np.array([np.cos(a), np.sin(a), 0.0])
+            est.add_observation(np.r_[axis + r * n[:2], z], n, 1)
+    g = np.linspace(-0.02, 0.02, 41)
+    gx, gy, gz = np.meshgrid(0.5 + g, g, np.linspace(0.05, 0.11, 7), indexing="ij")
+    pts = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
+    true = np.hypot(pts[:, 0] - axis[0], pts[:, 1] - axis[1]) < r
+    exact, refined, lattice = est.inside(pts), est.refined_inside(pts), est.lattice_inside(pts)
+    np.testing.assert_array_equal(refined, exact)
+
+    def iou(a, b):
+        return np.count_nonzero(a & b) / np.count_nonzero(a | b)
+
+    assert iou(lattice, true) < 0.8 < 0.95 < iou(refined, true)
+    far = np.array([[0.40, 0.10, 0.05], [0.5, 0.0, 0.08]])  # far outside, on the axis
+    np.testing.assert_array_equal(est.refined_inside(far), [False, True])
+
+
 def test_a_contact_with_an_unknown_normal_is_a_point_observation():
     """The driver reports a rim contact's normal as NaN: the point counts, the normal does not."""
     p, n = [0.55, 0.0, 0.06], [0.6, 0.8, 0.0]  # a normal the prior circle does not have there

@@ -1,7 +1,10 @@
 """Shape accuracy of an estimate against the simulated object (docs/architecture.md, Metrics).
 
 IoU of the estimated solid {μ < 0} against the true solid on a fixed lattice
-over the estimator's workspace (z ≥ 0 in 3D); the same IoU against the
+over the estimator's workspace (z ≥ 0 in 3D; μ interpolated from the
+estimator's lattice, the GP mean itself within a lattice cell of the surface,
+where the interpolation would shrink thin parts: ``ShapeEstimator.refined_inside``;
+until 2026-12-05 the interpolated μ everywhere); the same IoU against the
 finger-reachable solid (the true solid closed by a ball of the planner's
 ``tip_radius_m``; in 3D counted above ``min_tip_z_m`` = table + table margin
 + tip radius: :func:`tactile_sim.metrics.reachable_inside`); and the mean
@@ -30,14 +33,26 @@ class Evaluator:
         planner = experiment.planner_params
         self.tip_radius_m = float(planner.get("tip_radius_m", 0.01))
         self.min_tip_z_m = float(planner.get("min_tip_z_m", 0.015)) if self.obj.dim == 3 else None
+        self._inside_cache: tuple = (None, None, None)  # (estimator, its version, inside test)
+
+    def _inside(self, estimator):
+        """The estimate's inside test on the evaluation lattice, computed once per estimate (both IoUs
+        read it): μ interpolated from the estimator's lattice, the GP mean itself within a lattice cell
+        of the surface (``ShapeEstimator.refined_inside``)."""
+        version = getattr(estimator, "_version", None)  # bumped by every accepted observation
+        held, held_version, ins = self._inside_cache
+        if version is None or held is not estimator or held_version != version:
+            ins = estimator.refined_inside(self.points)
+            self._inside_cache = (estimator, version, ins)
+        return lambda points: ins if points is self.points else estimator.refined_inside(points)
 
     def iou(self, estimator) -> float:
-        """IoU of {μ < 0}, μ interpolated from the estimator's lattice (cheap after every touch)."""
-        return metrics.iou(estimator.lattice_inside, self.obj, self.points)
+        """IoU of {μ < 0} (see :meth:`_inside`)."""
+        return metrics.iou(self._inside(estimator), self.obj, self.points)
 
     def iou_reachable(self, estimator) -> float:
         """IoU of {μ < 0} against the finger-reachable solid (fair to a finger of radius r)."""
-        return metrics.reachable_iou(estimator.lattice_inside, self.obj, self.points, self.tip_radius_m,
+        return metrics.reachable_iou(self._inside(estimator), self.obj, self.points, self.tip_radius_m,
                                      self.min_tip_z_m)
 
     def surface_error_m(self, estimator) -> Optional[float]:

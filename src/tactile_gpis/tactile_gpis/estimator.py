@@ -603,8 +603,8 @@ class ShapeEstimator:
         lattice: False; in 3D also False below the table).
 
         Costs O(N) from the incrementally maintained lattice mean, where
-        :meth:`inside` costs a GP prediction per point (O(N n)): this is what the
-        metrics evaluate after every touch.
+        :meth:`inside` costs a GP prediction per point (O(N n)); near the surface it
+        misplaces thin parts (:meth:`refined_inside`, what the metrics evaluate).
         """
         from scipy.interpolate import RegularGridInterpolator
 
@@ -612,6 +612,34 @@ class ShapeEstimator:
         interp = RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
                                          fill_value=np.inf)
         ins = interp(P) < 0
+        if self.dim == 3:
+            ins &= P[:, 2] >= 0
+        return ins
+
+    def refined_inside(self, points: np.ndarray, band_cells: float = 1.0) -> np.ndarray:
+        """(N,) bool: the posterior mean is < 0 where it matters, at the cost of few predictions.
+
+        The lattice mean, linearly interpolated (:meth:`lattice_inside`), misplaces the zero level
+        set where the surface curves within a few lattice cells: linear interpolation of a
+        distance-like field overestimates it between the nodes, so thin parts shrink (a pole of
+        7 mm radius on the 6.4 mm 3D lattice loses a quarter of its section). Points whose
+        interpolated |μ| is below ``band_cells`` × the largest lattice spacing take the sign of the
+        GP mean itself (:meth:`inside`); the rest keep the interpolated sign (outside the lattice:
+        False; in 3D also False below the table). Within a cell the interpolation errs by less than
+        half its diagonal times |∇μ| ≈ 1, so one cell is enough. This is what the metrics evaluate.
+        """
+        from scipy.interpolate import RegularGridInterpolator
+
+        P = self._xy(points)
+        interp = RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
+                                         fill_value=np.inf)
+        mu = interp(P)
+        band = band_cells * max(float(a[1] - a[0]) for a in self.lattice_axes)
+        near = np.flatnonzero(np.abs(mu) < band)
+        for i in range(0, len(near), 4096):  # bounded memory: W is (rows, chunk) per prediction
+            rows = near[i: i + 4096]
+            mu[rows] = self._model().predict(P[rows], return_var=False)
+        ins = mu < 0
         if self.dim == 3:
             ins &= P[:, 2] >= 0
         return ins
