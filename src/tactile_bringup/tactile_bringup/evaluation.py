@@ -39,7 +39,7 @@ class Evaluator:
         """The estimate's inside test on the evaluation lattice, computed once per estimate (both IoUs
         read it): μ interpolated from the estimator's lattice, the GP mean itself within a lattice cell
         of the surface (``ShapeEstimator.refined_inside``)."""
-        version = getattr(estimator, "_version", None)  # bumped by every accepted observation
+        version = getattr(estimator, "version", None)  # bumped by every accepted observation
         held, held_version, ins = self._inside_cache
         if version is None or held is not estimator or held_version != version:
             ins = estimator.refined_inside(self.points)

@@ -566,6 +566,11 @@ class ShapeEstimator:
         self.gp.clear_eval_points()
 
     @property
+    def version(self) -> int:
+        """Bumped by every accepted observation: two reads with the same version see the same estimate."""
+        return self._version
+
+    @property
     def active_method(self) -> str:
         """'exact' or 'local': the path answering now."""
         return "local" if self.local is not None else "exact"
@@ -593,10 +598,7 @@ class ShapeEstimator:
     def inside(self, points: np.ndarray) -> np.ndarray:
         """(N,) bool: mean < 0 (in 3D also z >= 0: nothing below the table)."""
         P = self._xy(points)
-        ins = self._model().predict(P, return_var=False) < 0
-        if self.dim == 3:
-            ins &= P[:, 2] >= 0
-        return ins
+        return self._above_table(P, self._model().predict(P, return_var=False) < 0)
 
     def lattice_inside(self, points: np.ndarray) -> np.ndarray:
         """(N,) bool: the lattice mean, linearly interpolated, is < 0 (outside the
@@ -606,15 +608,19 @@ class ShapeEstimator:
         :meth:`inside` costs a GP prediction per point (O(N n)); near the surface it
         misplaces thin parts (:meth:`refined_inside`, what the metrics evaluate).
         """
+        P = self._xy(points)
+        return self._above_table(P, self._interpolated_mean(P) < 0)
+
+    def _interpolated_mean(self, P: np.ndarray) -> np.ndarray:
+        """The lattice mean linearly interpolated at (N, dim) points (outside the lattice: +inf)."""
         from scipy.interpolate import RegularGridInterpolator
 
-        P = self._xy(points)
-        interp = RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
-                                         fill_value=np.inf)
-        ins = interp(P) < 0
-        if self.dim == 3:
-            ins &= P[:, 2] >= 0
-        return ins
+        return RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
+                                       fill_value=np.inf)(P)
+
+    def _above_table(self, P: np.ndarray, inside: np.ndarray) -> np.ndarray:
+        """``inside`` and, in 3D, z >= 0 (nothing below the table)."""
+        return inside & (P[:, 2] >= 0) if self.dim == 3 else inside
 
     def refined_inside(self, points: np.ndarray, band_cells: float = 1.0) -> np.ndarray:
         """(N,) bool: the posterior mean is < 0 where it matters, at the cost of few predictions.
@@ -628,21 +634,14 @@ class ShapeEstimator:
         False; in 3D also False below the table). Within a cell the interpolation errs by less than
         half its diagonal times |∇μ| ≈ 1, so one cell is enough. This is what the metrics evaluate.
         """
-        from scipy.interpolate import RegularGridInterpolator
-
         P = self._xy(points)
-        interp = RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
-                                         fill_value=np.inf)
-        mu = interp(P)
+        mu = self._interpolated_mean(P)
         band = band_cells * max(float(a[1] - a[0]) for a in self.lattice_axes)
         near = np.flatnonzero(np.abs(mu) < band)
         for i in range(0, len(near), 4096):  # bounded memory: W is (rows, chunk) per prediction
             rows = near[i: i + 4096]
             mu[rows] = self._model().predict(P[rows], return_var=False)
-        ins = mu < 0
-        if self.dim == 3:
-            ins &= P[:, 2] >= 0
-        return ins
+        return self._above_table(P, mu < 0)
 
     def lattice_mean(self) -> np.ndarray:
         """Posterior mean on the lattice, shaped ``lattice_shape``."""
