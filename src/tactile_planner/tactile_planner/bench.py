@@ -20,10 +20,9 @@ the object); decision_ms = their sum, medians. Both take their parameters as a r
 mode does (package defaults, then ``explore_<mode>.yaml``: the 3D planner runs ``proposed``
 with the mean as clearance; the records name the strategy and clearance). Before
 2026-12-05 they took the package defaults (3D: ``info_travel``, distance clearance), which
-no 3D run uses; those figures in docs/benchmarks.md say so.
-medians. The exact path is run only up to ``--decision-exact-max-n`` contacts (its
-lattice state is O(n M): 3D with normals at n = 200 already holds 0.7 GB), by default in
-2D only (``--decision-exact-dims``). Each case
+no 3D run uses; those figures in docs/benchmarks.md say so. The exact path is run only up
+to ``--decision-exact-max-n`` contacts (its lattice state is O(n M): 3D with normals at
+n = 200 already holds 0.7 GB), by default in 2D only (``--decision-exact-dims``). Each case
 runs in its own process; peak_rss_mb is that process's peak resident memory.
 """
 
