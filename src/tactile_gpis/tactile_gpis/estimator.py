@@ -662,6 +662,36 @@ class ShapeEstimator:
         """Zero level set of the lattice mean (2D segments / 3D triangles)."""
         return self._map_and_level_set()[2]
 
+    def refined_level_set(self, steps: int = 4) -> LevelSet:
+        """The zero level set with each vertex moved along its lattice edge (a, b) to the GP mean's own
+        zero crossing: regula falsi (Illinois) on the bracket [a, b] (the lattice mean changes sign
+        there), ``steps`` predictions of the vertices. The lattice's vertices interpolate μ linearly
+        along the edge, which shrinks thin parts (:meth:`refined_inside`); the elements are the lattice's."""
+        ls = self.level_set()
+        if ls.keys is None or not len(ls.vertices):
+            return ls
+        m = len(self._lattice)
+        lo, hi = ls.keys // m, ls.keys % m
+        a, d = self._lattice[lo], self._lattice[hi] - self._lattice[lo]
+        mean = self.lattice_mean().ravel()
+        fa, fb = mean[lo].copy(), mean[hi].copy()
+        ta, tb = np.zeros(len(lo)), np.ones(len(lo))
+        kept_a, kept_b = np.zeros(len(lo), bool), np.zeros(len(lo), bool)
+        t = np.einsum("ij,ij->i", ls.vertices - a, d) / np.einsum("ij,ij->i", d, d)
+        for _ in range(steps):
+            v = a + t[:, None] * d
+            fv = np.concatenate([np.zeros(0)] + [self._model().predict(v[i: i + 2048], return_var=False)
+                                                  for i in range(0, len(v), 2048)])
+            left = (fv < 0) == (fa < 0)  # the crossing lies between t and b
+            # Illinois: the end kept a second time counts half, so neither end sticks
+            fb = np.where(left & kept_b, 0.5 * fb, fb)
+            fa = np.where(~left & kept_a, 0.5 * fa, fa)
+            kept_a, kept_b = ~left, left
+            ta, fa = np.where(left, t, ta), np.where(left, fv, fa)
+            tb, fb = np.where(left, tb, t), np.where(left, fb, fv)
+            t = ta + (tb - ta) * fa / np.where(fa != fb, fa - fb, 1.0)
+        return LevelSet(a + t[:, None] * d, ls.elements, ls.keys)
+
     def surface_points(self) -> np.ndarray:
         """(K, 3) vertices of the estimated zero level set (2D: z = plane_z_m)."""
         return self._to_xyz(self.level_set().vertices)
@@ -683,8 +713,9 @@ class ShapeEstimator:
     def export_shape(self, path: str | Path) -> Path:
         """Write the estimated shape by extension (world frame, metres): .csv contour (2D),
         .ply (2D polyline / 3D mesh, with the GP posterior variance of f at each vertex),
-        .obj (2D polyline / 3D mesh), .stl (3D mesh)."""
-        ls = self.level_set()
+        .obj (2D polyline / 3D mesh), .stl (3D mesh); the vertices on the GP mean's own zero
+        crossing (:meth:`refined_level_set`)."""
+        ls = self.refined_level_set()
         variance = None
         if Path(path).suffix.lower() == ".ply":  # in chunks: W is (rows, chunk) per prediction
             variance = np.concatenate([np.zeros(0)] + [self.predict(ls.vertices[i: i + 2048])[1]
