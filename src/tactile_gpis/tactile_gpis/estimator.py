@@ -306,6 +306,7 @@ class ShapeEstimator:
         self._contact_points = np.zeros((0, self.dim))  # added contacts (thinning by distance)
         self._contact_normals = np.zeros((0, self.dim))  # their unit normals (NaN: none)
         self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
+        self._refined: Optional[tuple[int, int, LevelSet]] = None  # (version, steps, refined_level_set())
         self._snap_prev: Optional[tuple[np.ndarray, np.ndarray]] = None  # last map's (vertex keys, positions)
 
     def add_observation(
@@ -667,6 +668,8 @@ class ShapeEstimator:
         zero crossing: regula falsi (Illinois) on the bracket [a, b] (the lattice mean changes sign
         there), ``steps`` predictions of the vertices. The lattice's vertices interpolate μ linearly
         along the edge, which shrinks thin parts (:meth:`refined_inside`); the elements are the lattice's."""
+        if self._refined is not None and self._refined[:2] == (self._version, steps):
+            return self._refined[2]  # the exports of one estimate (.ply, .stl, .obj) share it
         ls = self.level_set()
         if ls.keys is None or not len(ls.vertices):
             return ls
@@ -690,7 +693,8 @@ class ShapeEstimator:
             ta, fa = np.where(left, t, ta), np.where(left, fv, fa)
             tb, fb = np.where(left, tb, t), np.where(left, fb, fv)
             t = ta + (tb - ta) * fa / np.where(fa != fb, fa - fb, 1.0)
-        return LevelSet(a + t[:, None] * d, ls.elements, ls.keys)
+        self._refined = (self._version, steps, LevelSet(a + t[:, None] * d, ls.elements, ls.keys))
+        return self._refined[2]
 
     def surface_points(self) -> np.ndarray:
         """(K, 3) vertices of the estimated zero level set (2D: z = plane_z_m)."""
