@@ -639,10 +639,16 @@ class ShapeEstimator:
         mu = self._interpolated_mean(P)
         band = band_cells * max(float(a[1] - a[0]) for a in self.lattice_axes)
         near = np.flatnonzero(np.abs(mu) < band)
-        for i in range(0, len(near), 4096):  # bounded memory: W is (rows, chunk) per prediction
-            rows = near[i: i + 4096]
-            mu[rows] = self._model().predict(P[rows], return_var=False)
+        mu[near] = self._predict_in_chunks(P[near])
         return self._above_table(P, mu < 0)
+
+    def _predict_in_chunks(self, P: np.ndarray, return_var: bool = False):
+        """The posterior mean (and variance) at (N, dim) points, 2048 at a time: bounded memory, as a
+        prediction holds W = L⁻¹K(rows, chunk)."""
+        parts = [self._model().predict(P[i: i + 2048], return_var=return_var) for i in range(0, len(P), 2048)]
+        if not return_var:
+            return np.concatenate([np.zeros(0)] + parts)
+        return tuple(np.concatenate([np.zeros(0)] + [q[k] for q in parts]) for k in (0, 1))
 
     def lattice_mean(self) -> np.ndarray:
         """Posterior mean on the lattice, shaped ``lattice_shape``."""
@@ -683,8 +689,7 @@ class ShapeEstimator:
         t = np.einsum("ij,ij->i", ls.vertices - a, d) / np.einsum("ij,ij->i", d, d)
         for _ in range(steps):
             v = a + t[:, None] * d
-            fv = np.concatenate([np.zeros(0)] + [self._model().predict(v[i: i + 2048], return_var=False)
-                                                  for i in range(0, len(v), 2048)])
+            fv = self._predict_in_chunks(v)
             left = (fv < 0) == (fa < 0)  # the crossing lies between t and b
             # Illinois: the end kept a second time counts half, so neither end sticks
             fb = np.where(left & kept_b, 0.5 * fb, fb)
@@ -721,9 +726,8 @@ class ShapeEstimator:
         crossing (:meth:`refined_level_set`)."""
         ls = self.refined_level_set()
         variance = None
-        if Path(path).suffix.lower() == ".ply":  # in chunks: W is (rows, chunk) per prediction
-            variance = np.concatenate([np.zeros(0)] + [self.predict(ls.vertices[i: i + 2048])[1]
-                                                      for i in range(0, len(ls.vertices), 2048)])
+        if Path(path).suffix.lower() == ".ply":
+            variance = self._predict_in_chunks(ls.vertices, return_var=True)[1]
         return export_level_set(path, ls, self.dim, variance=variance, plane_z_m=self.plane_z_m)
 
     def export_observations(self, path: str | Path) -> Path:
