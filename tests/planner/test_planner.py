@@ -130,6 +130,8 @@ def test_bad_parameters_are_clear_errors():
         TouchPlanner.from_params({"backend": "astar"}, seed=0)
     with pytest.raises(ValueError, match="margin_m must be below"):
         TouchPlanner.from_params({"margin_m": 0.05}, seed=0)
+    with pytest.raises(ValueError, match="info_travel_per must be one of"):
+        TouchPlanner.from_params({"info_travel_per": "hour"}, seed=0)
 
 
 def test_3d_sphere_shell_plan():

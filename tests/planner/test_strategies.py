@@ -98,7 +98,8 @@ def test_unknown_strategy_is_a_clear_error():
         score_candidates("nearest", context(), StrategyParams(), np.random.default_rng(0))
 
 
-def test_info_travel_is_wrong_surface_settled_per_metre_written_out():
+@pytest.mark.parametrize("per", ["metre", "second"])
+def test_info_travel_is_wrong_surface_settled_per_metre_or_second_written_out(per):
     from math import erfc, exp, sqrt
 
     ctx = context(6)
@@ -111,11 +112,38 @@ def test_info_travel_is_wrong_surface_settled_per_metre_written_out():
         if not ctx.reachable[c]:
             continue
         settled = sum(exp(-float(np.sum((ctx.xyz[m] - ctx.xyz[c]) ** 2)) / ell**2) * w[m] for m in range(len(w)))
-        want[c] = w[c] * settled / (ctx.travel_m[c] + ctx.approach_m)
-    got = score_candidates("info_travel", ctx, StrategyParams(known_tolerance_m=tau, info_gain_length_scale_m=ell),
-                           np.random.default_rng(0))
+        cost = ctx.travel_m[c] + ctx.approach_m if per == "metre" else ctx.time_s[c]
+        want[c] = w[c] * settled / cost
+    got = score_candidates("info_travel", ctx, StrategyParams(known_tolerance_m=tau, info_gain_length_scale_m=ell,
+                                                              info_travel_per=per), np.random.default_rng(0))
     np.testing.assert_allclose(got[ctx.reachable], want[ctx.reachable], rtol=1e-10)
     assert np.all(np.isneginf(got[~ctx.reachable]))
+
+
+def test_info_travel_per_second_pays_a_touch_its_fixed_time():
+    """A touch's approach, retract and dwell cost seconds however near it is: per second, a far
+    candidate settling four times the wrong surface beats a near one; per metre the near one wins."""
+    from tactile_common.touch_geometry import MotionModel
+
+    ctx = context(8, m=2)
+    ctx.xyz = np.array([[0.50, 0.0, 0.06], [0.70, 0.0, 0.06]])  # 20 cm apart: no shared surface
+    ctx.reachable, ctx.cost = np.ones(2, bool), np.ones(2)
+    ctx.travel_m, ctx.approach_m = np.array([0.01, 0.20]), 0.02
+    motion = MotionModel(tip_speed_mps=0.1, approach_speed_mps=0.02, dwell_s=0.5)
+    ctx.time_s = np.array([motion.touch_time_s(t, 0.01) for t in ctx.travel_m])  # 1.6 s and 3.5 s
+    tau = 0.002
+    # w = 2Φ(−τ/σ): 1/2 near (σ = τ/0.67449), 1 far (σ ≫ τ); value w_c·Σ ρ²w_m: 1/4 and 1.
+    # Per metre 0.25/0.03 > 1/0.22; per second 0.25/1.6 s < 1/3.5 s.
+    ctx.variance_m2 = np.array([(tau / 0.674490) ** 2, 1.0])
+    assert pick("info_travel", ctx, known_tolerance_m=tau, info_travel_per="metre") == 0
+    assert pick("info_travel", ctx, known_tolerance_m=tau, info_travel_per="second") == 1
+
+
+def test_unknown_info_travel_per_is_a_clear_error():
+    ctx = context(6)
+    ctx.travel_m = ctx.cost / 100.0
+    with pytest.raises(ValueError, match="info_travel_per must be one of"):
+        score_candidates("info_travel", ctx, StrategyParams(info_travel_per="furlong"), np.random.default_rng(0))
 
 
 def test_info_travel_prefers_far_unknown_surface_to_near_known_surface():

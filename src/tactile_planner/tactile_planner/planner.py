@@ -28,7 +28,7 @@ from .pocket import closer_pretouch, pocket_entries
 from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
-from .strategies import SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
+from .strategies import INFO_TRAVEL_PER, SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TravelError, make_backend
 
 
@@ -111,6 +111,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "info_gain_noise_var_m2": (1e-6, "info_gain: contact noise variance", {"gt": 0.0}),
     "known_tolerance_m": (0.002, "info_travel: a touch is worth the chance that the surface there is more than "
                                  "this far from the estimate, P(|f| > τ) = 2Φ(−τ/σ)", {"gt": 0.0}),
+    "info_travel_per": ("metre", "info_travel: value per 'metre' of travel (+ 2·standoff) or per 'second' of the "
+                                 "touch (travel, approach, retract, dwell: robot time)", {"choices": INFO_TRAVEL_PER}),
     "smooth_path": (True, "shortcut the lattice path (never entering the margin)"),
 }
 
@@ -171,6 +173,8 @@ class TouchPlanner:
             raise ValueError(f"clearance must be one of {CLEARANCES}, got '{p['clearance']}'")
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
+        if p["info_travel_per"] not in INFO_TRAVEL_PER:
+            raise ValueError(f"info_travel_per must be one of {INFO_TRAVEL_PER}, got '{p['info_travel_per']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
                   "info_gain_length_scale_m", "known_tolerance_m"):
             if not float(p[k]) > 0:
@@ -190,6 +194,7 @@ class TouchPlanner:
             info_gain_length_scale_m=float(p["info_gain_length_scale_m"]),
             info_gain_noise_var_m2=float(p["info_gain_noise_var_m2"]),
             known_tolerance_m=float(p["known_tolerance_m"]),
+            info_travel_per=str(p["info_travel_per"]),
         )
         self.last_graph: FreeSpaceGraph | None = None
         self.last_why: dict[str, np.ndarray] = {}  # of the last candidate set planned on

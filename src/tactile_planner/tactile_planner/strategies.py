@@ -28,7 +28,9 @@ the lowest index). Every strategy receives the planner's seeded
   metre of travel. w = P(|f| > τ) = 2Φ(−τ/σ) is the chance that the surface
   at a candidate lies more than τ = ``known_tolerance_m`` from the estimate;
   value(c) = w_c·Σ_m exp(−|m − c|²/ℓ²)·w_m; score = value / (travel_m +
-  2·standoff). w saturates where σ ≫ τ and vanishes where σ ≪ τ: the value
+  2·standoff) (``info_travel_per: metre``) or value / time of the touch
+  (``second``: travel/tip speed + approach and retract + dwell, the robot time
+  the benchmark also reports). w saturates where σ ≫ τ and vanishes where σ ≪ τ: the value
   does not span the orders of magnitude of σ², and a touch where the shape is
   known within τ is worth ≈ 0 however near the finger is.
 """
@@ -45,6 +47,8 @@ from scipy.special import ndtr
 STRATEGY_NAMES = ("proposed", "uncertainty", "random", "sequential", "info_gain", "info_travel")
 STRATEGIES = STRATEGY_NAMES
 SCORE_FORMS = ("normalized", "additive", "ratio")
+#: What ``info_travel`` divides its value by: the touch's travel (m) or its robot time (s).
+INFO_TRAVEL_PER = ("metre", "second")
 
 
 @dataclass
@@ -69,6 +73,7 @@ class StrategyParams:
     info_gain_length_scale_m: float = 0.03
     info_gain_noise_var_m2: float = 1e-6
     known_tolerance_m: float = 0.002
+    info_travel_per: str = "metre"
 
 
 def _norm(v: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -138,7 +143,12 @@ def score_candidates(name: str, ctx: SelectionContext, params: StrategyParams,
         if ctx.travel_m is None:
             raise ValueError("info_travel needs the travel length of every candidate (travel_m)")
         gain = wrong_surface_corrected(ctx.xyz, var, params.known_tolerance_m, params.info_gain_length_scale_m)
-        s = gain / np.maximum(np.where(ok, ctx.travel_m, np.inf) + ctx.approach_m, 1e-9)
+        if params.info_travel_per == "second":
+            s = gain / np.maximum(np.where(ok, ctx.time_s, np.inf), 1e-9)
+        elif params.info_travel_per == "metre":
+            s = gain / np.maximum(np.where(ok, ctx.travel_m, np.inf) + ctx.approach_m, 1e-9)
+        else:
+            raise ValueError(f"info_travel_per must be one of {INFO_TRAVEL_PER}, got '{params.info_travel_per}'")
     else:
         raise ValueError(f"strategy must be one of {STRATEGIES}, got '{name}'")
     return np.where(ok, s, -np.inf)
