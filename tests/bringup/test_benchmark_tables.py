@@ -91,7 +91,7 @@ def test_ratios_are_taken_for_the_modes_default_strategy_when_it_was_run():
 
     two = [{"mode": "2d", "strategy": s} for s in ("info_travel", "proposed", "sequential")]
     assert default_strategy(two) == "info_travel"  # explore_2d / soc_planner.yaml
-    assert default_strategy([{"mode": "3d", "strategy": s} for s in ("info_travel", "proposed")]) == "proposed"
+    assert default_strategy([{"mode": "3d", "strategy": s} for s in ("proposed", "info_travel")]) == "info_travel"
     assert default_strategy([{"mode": "2d", "strategy": "proposed"}]) == DEFAULT_STRATEGY  # not run: the fallback
 
 

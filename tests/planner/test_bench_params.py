@@ -22,4 +22,5 @@ def test_decision_benchmark_takes_the_mode_files_choices(dim):
             assert planner[key] == value, key
     assert "start_tip_xyz_m" not in planner  # the explorer's, not declared by the planner
     if dim == 3:
-        assert (planner["strategy"], planner["clearance"]) == ("proposed", "mean")
+        assert (planner["strategy"], planner["info_travel_per"], planner["clearance"]) == (
+            "info_travel", "second", "mean")

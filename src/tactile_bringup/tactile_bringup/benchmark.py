@@ -189,7 +189,7 @@ _LEVELS = ("0.90", "0.95")
 
 
 def default_strategy(runs: Sequence[dict]) -> str:
-    """The strategy the ratios are for: the mode's default (2D info_travel, 3D proposed, from the
+    """The strategy the ratios are for: the mode's default (``info_travel``; per second in 3D; from the
     configuration files), when the runs hold it; else ``DEFAULT_STRATEGY``."""
     have = {r["strategy"] for r in runs}
     try:

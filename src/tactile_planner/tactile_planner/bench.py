@@ -17,8 +17,8 @@ GPIS estimator (``method`` exact and/or local, ``--decision-methods``) holds n c
 then, ``--decision-reps`` times, one more contact is added (update_ms), the map is built
 (map_ms, ``ShapeEstimator.map_array``) and the planner decides on it (plan_ms, tip outside
 the object); decision_ms = their sum, medians. Both take their parameters as a run of the
-mode does (package defaults, then ``explore_<mode>.yaml``: the 3D planner runs ``proposed``
-with the mean as clearance; the records name the strategy and clearance). Before
+mode does (package defaults, then ``explore_<mode>.yaml``: the 3D planner runs ``info_travel``
+per second with the mean as clearance; the records name the strategy and clearance). Before
 2026-12-05 they took the package defaults (3D: ``info_travel``, distance clearance), which
 no 3D run uses; those figures in docs/benchmarks.md say so. The exact path is run only up
 to ``--decision-exact-max-n`` contacts (its lattice state is O(n M): 3D with normals at
@@ -140,8 +140,8 @@ DECISION_GOALS_MS = {(3, 1000): 50.0, (2, 2000): 15.0}  # issue 14: update + map
 
 def mode_params(dim: int) -> tuple[dict, dict]:
     """The estimator's and the planner's parameters as a run of this mode gets them: each package's
-    defaults, then ``tactile_bringup/config/explore_<mode>.yaml`` (3D: ``proposed`` with the mean as
-    clearance), each node's declared parameters only."""
+    defaults, then ``tactile_bringup/config/explore_<mode>.yaml`` (3D: ``info_travel`` per second with
+    the mean as clearance), each node's declared parameters only."""
     from tactile_common.params_file import node_params, package_config
     from tactile_gpis import estimator as gpis_estimator
 
