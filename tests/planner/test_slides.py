@@ -61,7 +61,15 @@ def test_trace_ends_where_it_leaves_the_lattice():
 
 
 def brute_force(theta0, variance_of_angle, travel_m, motion, approach_m, params):
-    """G/T over starts × directions × lengths on the exact arc (independent of the lattice trace)."""
+    """G/T over starts × directions × lengths on the exact arc (independent of the lattice trace);
+    a metre of arc is worth σ² or, with ``value: wrong_surface``, 2Φ(−τ/σ) = erfc(τ/(σ√2))."""
+    from math import erfc, sqrt
+
+    if params.value == "wrong_surface":
+        worth = np.vectorize(lambda v: erfc(params.known_tolerance_m / sqrt(v) / sqrt(2.0)))
+        value_of_angle = lambda a: worth(variance_of_angle(a))  # noqa: E731
+    else:
+        value_of_angle = variance_of_angle
     h = params.trace_step_m
     K = int(np.floor(params.max_length_m / h + 1e-9))
     k_min = int(np.ceil(params.min_length_m / h - 1e-9))
@@ -69,7 +77,7 @@ def brute_force(theta0, variance_of_angle, travel_m, motion, approach_m, params)
     for i, th in enumerate(theta0):
         for d, sgn in enumerate((+1.0, -1.0)):
             ang = th + sgn * np.arange(K + 1) * h / R
-            gain = np.cumsum(variance_of_angle(ang) * h)
+            gain = np.cumsum(value_of_angle(ang) * h)
             for k in range(k_min, K + 1):
                 T = travel_m[i] / motion.tip_speed_mps + 2 * approach_m / motion.approach_speed_mps \
                     + motion.dwell_s + k * h / motion.slide_speed_mps
@@ -78,8 +86,9 @@ def brute_force(theta0, variance_of_angle, travel_m, motion, approach_m, params)
     return best
 
 
+@pytest.mark.parametrize("value", ["variance", "wrong_surface"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_choice_matches_a_brute_force_search(seed):
+def test_choice_matches_a_brute_force_search(seed, value):
     rng = np.random.default_rng(seed)
     a0 = rng.uniform(-np.pi, np.pi)
 
@@ -91,7 +100,7 @@ def test_choice_matches_a_brute_force_search(seed):
     p, n = on_circle(theta0)
     travel = rng.uniform(0.0, 0.2, len(theta0))
     motion = MotionModel(slide_speed_mps=0.05)
-    params = SlideParams(max_length_m=0.25, min_length_m=0.02, trace_step_m=0.002)
+    params = SlideParams(max_length_m=0.25, min_length_m=0.02, trace_step_m=0.002, value=value)
     choice = choose_slide(lat, p, n, np.ones(len(p), bool), travel, motion, 0.01, params)
     ratio, (i, d, length) = brute_force(theta0, variance_of_angle, travel, motion, 0.01, params)
     assert choice.score == pytest.approx(ratio, rel=0.03)
@@ -121,6 +130,8 @@ def test_no_reachable_candidate_gives_no_slide():
 def test_bad_slide_params_are_refused():
     with pytest.raises(ValueError, match="slide_min_length_m"):
         SlideParams.from_params({"slide_min_length_m": 0.5, "slide_max_length_m": 0.1})
+    with pytest.raises(ValueError, match="slide_value"):
+        SlideParams.from_params({"slide_value": "fun"})
 
 
 def test_planner_with_touch_slide_plans_a_tangent_slide():

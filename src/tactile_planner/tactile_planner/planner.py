@@ -103,6 +103,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "slide_max_length_m": (0.6, "slide: longest planned slide (a closed contour also ends it: the servo's lap rule)", {"gt": 0.0}),
     "slide_min_length_m": (0.02, "slide: shortest planned slide", {"gt": 0.0}),
     "slide_trace_step_m": (0.003, "slide: step of the path traced along the estimated surface", {"gt": 0.0}),
+    "slide_value": ("wrong_surface", "slide: what a metre of slide is worth: 'wrong_surface' (the chance "
+                                     "2Φ(−τ/σ) that the surface there is off by more than known_tolerance_m) or "
+                                     "'variance' (σ² along it; docs/benchmarks.md)", {"choices": slides.SLIDE_VALUES}),
     "slide_directions_3d": (4, "slide, 3D: start directions per candidate in its tangent plane: 2 = along the "
                             "horizontal band (±z × n), 4 = also up and down the surface, 8 = also the diagonals "
                             "(tactile_planner.slides; 4 measured best, docs/benchmarks.md)", {"choices": (2, 4, 8)}),

@@ -16,7 +16,12 @@ tip-centre height: the commander's box would stop the slide there).
 
 Value of the first s = k·h metres (k steps of length h): the uncertainty it
 would remove, G_k = Σ_{j ≤ k} max(σ²(x_j) − ``known_var_m2``, 0)·h (the
-variance integrated along the path, m³), per second of robot time
+variance integrated along the path, m³; ``value: variance``) or, the default,
+the length of surface along it that may be wrong by more than τ, G_k =
+Σ_{j ≤ k} 2Φ(−τ/σ(x_j))·h (m; ``value: wrong_surface``, τ =
+``known_tolerance_m``, as the ``info_travel`` pokes weigh a candidate: σ²
+spans orders of magnitude and lets one very uncertain spot outweigh a long
+stretch of surface known only to a few millimetres), per second of robot time
 
     T_k = travel_i / tip_speed + (approach + retract) / approach_speed + dwell + s / slide_speed
 
@@ -36,10 +41,15 @@ from typing import Any, Mapping
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
+from scipy.special import ndtr
 
 from tactile_common.touch_geometry import MotionModel
 
 from .maps import MapLattice
+
+
+#: What a metre of planned slide is worth (``SlideParams.value``, the planner's ``slide_value``).
+SLIDE_VALUES = ("variance", "wrong_surface")
 
 
 @dataclass(frozen=True)
@@ -49,6 +59,8 @@ class SlideParams:
     trace_step_m: float = 0.003
     known_var_m2: float = 0.0
     directions: int = 4  # start directions per candidate (3D; 2D always ±t)
+    value: str = "wrong_surface"  # what a metre of slide is worth: "wrong_surface" (2Φ(−τ/σ)) or "variance" (σ²)
+    known_tolerance_m: float = 0.002  # τ of "wrong_surface"
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "SlideParams":
@@ -58,7 +70,9 @@ class SlideParams:
                   float(p.get("slide_min_length_m", cls.min_length_m)),
                   float(p.get("slide_trace_step_m", cls.trace_step_m)),
                   float(p.get("known_var_m2", cls.known_var_m2)),
-                  int(p.get("slide_directions_3d", cls.directions)))
+                  int(p.get("slide_directions_3d", cls.directions)),
+                  str(p.get("slide_value", cls.value)),
+                  float(p.get("known_tolerance_m", cls.known_tolerance_m)))
         if not 0 < out.min_length_m <= out.max_length_m:
             raise ValueError(f"need 0 < slide_min_length_m ({out.min_length_m}) ≤ slide_max_length_m "
                              f"({out.max_length_m})")
@@ -66,6 +80,8 @@ class SlideParams:
             raise ValueError(f"slide_trace_step_m = {out.trace_step_m}: must be > 0")
         if out.directions not in (2, 4, 8):
             raise ValueError(f"slide_directions_3d = {out.directions}: must be 2, 4 or 8")
+        if out.value not in SLIDE_VALUES:
+            raise ValueError(f"slide_value = '{out.value}': must be one of {SLIDE_VALUES}")
         return out
 
 
@@ -206,7 +222,11 @@ def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.nda
     tangents = dirs[idx].transpose(1, 0, 2).reshape(-1, 3)
     pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m)
     valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
-    w = np.where(valid, np.maximum(var - params.known_var_m2, 0.0), 0.0) * h
+    if params.value == "wrong_surface":  # 2Φ(−τ/σ): the chance the surface there is off by more than τ
+        per_m = 2.0 * ndtr(-params.known_tolerance_m / np.sqrt(np.maximum(var, 1e-300)))
+    else:
+        per_m = np.maximum(var - params.known_var_m2, 0.0)
+    w = np.where(valid, per_m, 0.0) * h
     gain = np.cumsum(w, axis=1)  # (D·m, K+1): G_k
     s = np.arange(K + 1) * h
     fixed = np.tile(motion.slide_time_s(travel_m[idx], approach_m, 0.0, approach_m), D)
