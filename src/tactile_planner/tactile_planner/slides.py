@@ -41,11 +41,11 @@ from typing import Any, Mapping
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
-from scipy.special import ndtr
 
 from tactile_common.touch_geometry import MotionModel
 
 from .maps import MapLattice
+from .strategies import wrong_probability
 
 
 #: What a metre of planned slide is worth (``SlideParams.value``, the planner's ``slide_value``).
@@ -222,8 +222,8 @@ def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.nda
     tangents = dirs[idx].transpose(1, 0, 2).reshape(-1, 3)
     pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m)
     valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
-    if params.value == "wrong_surface":  # 2Φ(−τ/σ): the chance the surface there is off by more than τ
-        per_m = 2.0 * ndtr(-params.known_tolerance_m / np.sqrt(np.maximum(var, 1e-300)))
+    if params.value == "wrong_surface":  # the chance the surface there is off by more than τ
+        per_m = wrong_probability(var, params.known_tolerance_m)
     else:
         per_m = np.maximum(var - params.known_var_m2, 0.0)
     w = np.where(valid, per_m, 0.0) * h
