@@ -150,3 +150,29 @@ def test_tip_far_outside_the_lattice_joins_without_snapping():
     res = TouchPlanner.from_params(params, seed=0).plan(sphere_map(32, 3), np.array([0.3, 0.0, 0.45]))
     assert res.ok and not res.start_snapped, res.message
     np.testing.assert_allclose(res.path_xyz[0], [0.3, 0.0, 0.45])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_timed_travel_is_the_length_of_the_path_the_arm_is_sent(dim):
+    """travel_m (what the motion model turns into robot time) against the path the planner
+    sends, measured along its polyline (tip → lattice path → pre-touch point, shortcut): with
+    travel_length 'shortest' they agree within the lattice's detour; the LMDP's expected length
+    ∂C/∂rate, the controlled walk's, is longer (docs/planner.md, *Travel length*)."""
+    tips = [np.array([0.38, -0.12, 0.06]), np.array([0.62, 0.1, 0.06]), np.array([0.5, 0.12, 0.06]),
+            np.array([0.4, 0.08, 0.06])]
+    if dim == 3:
+        tips = [t + [0.0, 0.0, z] for t, z in zip(tips, (0.1, 0.06, 0.12, 0.03))]
+    ratio = {}
+    for length in ("shortest", "expected"):
+        params = dict(load_params(str(CONFIG)), mode=f"{dim}d", travel_length=length, strategy="info_travel")
+        r = []
+        for tip in tips:
+            planner = TouchPlanner.from_params(params, seed=0)
+            res = planner.plan(sphere_map(64 if dim == 2 else 40, dim), tip)
+            assert res.ok, res.message
+            # travel_m starts at the graph node nearest the tip: so does the path compared
+            start = planner.last_graph.xyz[planner.last_graph.nearest_node(tip)]
+            r.append((res.path_length_m - np.linalg.norm(start - tip)) / res.travel_m[res.index])
+        ratio[length] = float(np.median(r))
+    assert 0.6 <= ratio["shortest"] <= 1.0 + 1e-9, ratio  # measured 0.71–0.95
+    assert ratio["expected"] < ratio["shortest"] - 0.05, ratio

@@ -176,3 +176,43 @@ def test_the_path_at_a_high_rate_is_a_shortest_path(obstacle):
         length = sum(graph.length_m[i, j] for i, j in zip(path[:-1], path[1:]))
         assert length == pytest.approx(shortest[b], rel=1e-9, abs=1e-12)
     assert not backend.last_info.get("path_fallback")
+
+
+def test_travel_length_shortest_is_the_octile_distance_on_an_empty_lattice():
+    """No obstacle: the shortest 8-connected path between lattice nodes has a closed form,
+    h·(max(|di|, |dj|) + (√2 − 1)·min(|di|, |dj|)); travel_m adds the terminal edge."""
+    lat = lattice_2d(20, obstacle=False)
+    graph = build_free_graph(lat, margin_m=0.0)
+    h = float(lat.axes[0][1] - lat.axes[0][0])
+    ij = np.round(graph.xyz[:, :2] / h).astype(int)
+    nodes, lens = some_terminals(graph, 15, seed=3)
+    start = int(np.flatnonzero((ij[:, 0] == 4) & (ij[:, 1] == 7))[0])
+    sol = LmdpBackend(cost_rate_per_m=40.0, solver="lu", travel_length="shortest").solve(
+        graph, start, nodes, lens, np.ones(15, bool))
+    d = np.abs(ij[nodes] - ij[start])
+    want = h * (d.max(axis=1) + (np.sqrt(2.0) - 1.0) * d.min(axis=1)) + lens
+    np.testing.assert_allclose(sol.travel_m, want, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver", ["lu", "cg"])
+def test_travel_length_expected_is_the_rate_derivative_of_the_cost(solver):
+    """travel_length='expected': travel_m = ∂C/∂rate, against central finite differences of two
+    cost solves at rate ± δ (the effective rate is below the budget: it is the rate given)."""
+    graph = build_free_graph(lattice_2d(16, True), margin_m=0.0)
+    nodes, lens = some_terminals(graph, 10, seed=5)
+    rate, delta = 5.0, 1e-3  # CG: 5 × the 0.42 m diagonal is within its 3-nat budget
+    costs = []
+    for r in (rate - delta, rate + delta):
+        costs.append(LmdpBackend(cost_rate_per_m=r, max_rate_nats=1e9, solver="lu").solve(
+            graph, 0, nodes, lens, np.ones(10, bool), want_travel_m=False).cost)
+    fd = (costs[1] - costs[0]) / (2 * delta)
+    sol = LmdpBackend(cost_rate_per_m=rate, max_rate_nats=1e9, solver=solver, travel_length="expected").solve(
+        graph, 0, nodes, lens, np.ones(10, bool))
+    np.testing.assert_allclose(sol.travel_m, fd, rtol=1e-5)
+    shortest = csg.dijkstra(graph.length_m, indices=0)[nodes] + lens
+    assert np.all(sol.travel_m >= shortest - 1e-9)  # the controlled walk is never shorter
+
+
+def test_unknown_travel_length_is_refused():
+    with pytest.raises(ValueError, match="travel_length"):
+        LmdpBackend(cost_rate_per_m=10.0, travel_length="longest")

@@ -29,7 +29,7 @@ from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
 from .strategies import INFO_TRAVEL_PER, SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
-from .travel import TravelError, make_backend
+from .travel import TRAVEL_LENGTHS, TravelError, make_backend
 
 
 #: name -> (default, description): the node's ROS parameters, also the keys of ``from_params``.
@@ -45,6 +45,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "max_rate_nats": (60.0, "numerics: the rate is scaled so that rate × graph bounding-box diagonal ≤ this (no underflow)", {"gt": 0.0}),
     "cg_max_rate_nats": (3.0, "numerics with CG (3D): rate × graph bounding-box diagonal ≤ this, so every cost stays within CG's accuracy", {"gt": 0.0}),
     "cg_rtol": (1e-14, "relative residual tolerance of the 3D conjugate gradients", {"gt": 0.0, "lt": 1.0}),
+    "travel_length": ("expected", "path length the motion model times (travel_m): 'expected' (the LMDP's "
+                      "expected path length ∂C/∂rate: one more solve) or 'shortest' (the free graph's shortest "
+                      "path, nearer what the arm follows, but worse decisions measured)", {"choices": TRAVEL_LENGTHS}),
     "lattice_stride": (1, "use every n-th node of the estimator lattice per axis (coarser planning lattice)", {"ge": 1}),
     "shell_m": (0.03, "plan in a band (2D) / shell (3D) of nodes with clearance ≤ margin + shell (0 = all free space)", {"ge": 0.0}),
     "margin_m": (0.015, "minimum clearance of the tip centre from the estimated surface on paths", {"gt": 0.0}),
@@ -190,7 +193,7 @@ class TouchPlanner:
         self.seed = int(seed)
         self.backend = make_backend(p["backend"], float(p["cost_rate_per_m"]), float(p["max_rate_nats"]),
                                     str(p["solver"]), float(p["cg_rtol"]),
-                                    float(p["cg_max_rate_nats"]))
+                                    float(p["cg_max_rate_nats"]), str(p["travel_length"]))
         self.strategy_params = StrategyParams(
             alpha=float(p["alpha"]), score_form=str(p["score_form"]),
             sequential_step_rad=float(p["sequential_step_rad"]),

@@ -13,8 +13,15 @@ symmetric positive definite system (D − W_II) u = e_x₀ and
 exp(−C_b) = u[node_b]·W_b: ONE solve for all candidates (2D: sparse LU;
 3D: Jacobi-preconditioned CG). rate·L* ≤ C_b ≤ rate·L* + h·log(D_max), L* the
 shortest path length and h its number of steps, so C/rate → L* as the rate grows.
-The expected length of the optimal controlled paths is ∂C_b/∂rate (one more
-solve with the same matrix); it is reported as ``travel_m``.
+``travel_m``, the path length the motion model turns into robot time, is by default
+(``travel_length="expected"``) the expected length of the optimal controlled paths,
+∂C_b/∂rate (one more solve with the same matrix). The path the arm is sent — the most
+likely path below, shortcut — is shorter: the walk the LMDP averages over is diffusive
+at the rates the numerics allow, and ∂C/∂rate is 1.2–1.8× the path sent in 2D and 4–5×
+in 3D. ``travel_length="shortest"`` gives the shortest free path's length over the graph
+instead (Dijkstra plus the terminal edge; the path sent is 0.71–0.95× of it) and skips
+the second solve, but the decisions it times are worse on the generated suites
+(docs/planner.md, *Travel length*).
 
 Numerics: the rate is scaled down (``rate_eff``) so that rate_eff × lattice
 diagonal of the graph's bounding box ≤ ``max_rate_nats``; with the KL term (≤ log D per step) the
@@ -81,17 +88,25 @@ def _terminal_degree(graph: FreeSpaceGraph, term_node: np.ndarray) -> np.ndarray
     return np.maximum(deg + np.bincount(term_node[ok], minlength=graph.n_nodes), 1.0)
 
 
+#: what ``travel_m`` holds: the LMDP's expected path length ∂C/∂rate, or the shortest free path's length
+TRAVEL_LENGTHS = ("expected", "shortest")
+
+
 class LmdpBackend:
     """First-exit LMDP travel costs (see the module docstring)."""
 
     name = "lmdp"
 
     def __init__(self, cost_rate_per_m: float, max_rate_nats: float = 60.0, solver: str = "auto",
-                 cg_rtol: float = 1e-14, cg_maxiter: int = 5000, cg_max_rate_nats: float = 3.0) -> None:
+                 cg_rtol: float = 1e-14, cg_maxiter: int = 5000, cg_max_rate_nats: float = 3.0,
+                 travel_length: str = "expected") -> None:
         if cost_rate_per_m <= 0 or max_rate_nats <= 0:
             raise ValueError("cost_rate_per_m and max_rate_nats must be positive")
         if solver not in ("auto", "lu", "cg"):
             raise ValueError(f"solver must be auto, lu or cg, got '{solver}'")
+        if travel_length not in TRAVEL_LENGTHS:
+            raise ValueError(f"travel_length must be one of {TRAVEL_LENGTHS}, got '{travel_length}'")
+        self.travel_length = travel_length
         self.cost_rate_per_m = float(cost_rate_per_m)
         self.max_rate_nats = float(max_rate_nats)
         self.solver = solver
@@ -140,7 +155,7 @@ class LmdpBackend:
               term_len_m: np.ndarray, reachable: np.ndarray, want_travel_m: bool = True) -> TravelSolution:
         """Costs to every candidate with ``reachable`` (others: inf).
 
-        ``want_travel_m=False`` skips the second solve (``travel_m`` is then NaN).
+        ``want_travel_m=False`` skips the path lengths (``travel_m`` is then NaN).
         """
         self.last_info = {}
         rate = self.effective_rate(graph)
@@ -150,9 +165,16 @@ class LmdpBackend:
         e0 = np.zeros(graph.n_nodes)
         e0[start] = 1.0
         u = solve(e0)
-        # d(D − W)/d rate = ℓ∘W  ⇒  du/d rate = −(D − W)⁻¹ (ℓ∘W) u
-        if want_travel_m:
+        expected = want_travel_m and self.travel_length == "expected"
+        if expected:  # d(D − W)/d rate = ℓ∘W  ⇒  du/d rate = −(D − W)⁻¹ (ℓ∘W) u
             du = -solve(graph.length_m.multiply(w).tocsr() @ u)
+        dist = None  # shortest free path length from the start to every node (m), when needed
+
+        def shortest() -> np.ndarray:
+            nonlocal dist
+            if dist is None:
+                dist = csg.dijkstra(graph.length_m, indices=start)
+            return dist
         cost = np.full(len(term_node), np.inf)
         travel = np.full(len(term_node), np.inf)
         ok = reachable & (tn >= 0)
@@ -163,7 +185,12 @@ class LmdpBackend:
         good = un > floor
         gi = idx[good]
         cost[gi] = -np.log(un[good]) + rate * term_len_m[gi]
-        travel[gi] = (-du[tn[gi]] / un[good] + term_len_m[gi]) if want_travel_m else np.nan
+        if not want_travel_m:
+            travel[gi] = np.nan
+        elif expected:
+            travel[gi] = -du[tn[gi]] / un[good] + term_len_m[gi]
+        else:
+            travel[gi] = shortest()[tn[gi]] + term_len_m[gi]
         far = idx[~good]
         if len(far):
             # beyond the iterative solver's dynamic range: the single best path's LMDP cost
@@ -172,12 +199,12 @@ class LmdpBackend:
             lc = graph.length_m.tocoo()
             wt = rate * lc.data + 0.5 * (np.log(deg[lc.row]) + np.log(deg[lc.col]))
             phi = csg.dijkstra(sp.csr_matrix((wt, (lc.row, lc.col)), shape=mat.shape), indices=start)
-            dist = csg.dijkstra(graph.length_m, indices=start)
             bound = phi[tn[far]] + np.log(deg[tn[far]]) + rate * term_len_m[far]
             cmax = float(np.max(cost[gi])) if len(gi) else 0.0
             cost[far] = np.maximum(bound, cmax)
-            travel[far] = dist[tn[far]] + term_len_m[far]
-        self.last_info.update(solver=kind, rate_per_m=rate, n_beyond_range=int(len(far)))
+            travel[far] = shortest()[tn[far]] + term_len_m[far]
+        self.last_info.update(solver=kind, rate_per_m=rate, n_beyond_range=int(len(far)),
+                              travel_length=self.travel_length)
         indptr, indices = w.indptr, w.indices
 
         def path(b: int) -> np.ndarray:
@@ -233,10 +260,11 @@ class DijkstraBackend:
 
 
 def make_backend(name: str, cost_rate_per_m: float, max_rate_nats: float, solver: str = "auto",
-                 cg_rtol: float = 1e-14, cg_max_rate_nats: float = 3.0):
-    """'lmdp' or 'dijkstra'."""
+                 cg_rtol: float = 1e-14, cg_max_rate_nats: float = 3.0, travel_length: str = "expected"):
+    """'lmdp' or 'dijkstra' (whose costs are the shortest path lengths: ``travel_length`` does not apply)."""
     if name == "lmdp":
-        return LmdpBackend(cost_rate_per_m, max_rate_nats, solver, cg_rtol, cg_max_rate_nats=cg_max_rate_nats)
+        return LmdpBackend(cost_rate_per_m, max_rate_nats, solver, cg_rtol, cg_max_rate_nats=cg_max_rate_nats,
+                           travel_length=travel_length)
     if name == "dijkstra":
         return DijkstraBackend()
     raise ValueError(f"backend must be 'lmdp' or 'dijkstra', got '{name}'")
