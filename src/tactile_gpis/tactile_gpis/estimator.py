@@ -706,8 +706,11 @@ class ShapeEstimator:
         return self._to_xyz(self.level_set().vertices)
 
     def map_array(self) -> np.ndarray:
-        """The variance map: lattice nodes (kind 0, C order) then candidates (kind 1)."""
-        return self._map_and_level_set()[1].copy()
+        """The variance map: lattice nodes (kind 0, C order) then candidates (kind 1).
+
+        Read-only: the estimator's own map until the next observation builds a new one (no copy of
+        the 48³ lattice per decision); ``.copy()`` it to edit."""
+        return self._map_and_level_set()[1]
 
     def observations(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The accepted observations in the order added, as given to :meth:`add_observation`
@@ -780,6 +783,7 @@ class ShapeEstimator:
         g = _unit(np.vstack([grad, c_grad]))
         for i, name in enumerate(("normal_x", "normal_y", "normal_z")[: self.dim]):
             out[name] = g[:, i]
+        out.flags.writeable = False  # handed out by map_array without a copy
         self._cache = (self._version, out, ls)
         return self._cache
 
