@@ -3,12 +3,16 @@
 IoU of the estimated solid {μ < 0} against the true solid on a fixed lattice
 over the estimator's workspace (z ≥ 0 in 3D; μ interpolated from the
 estimator's lattice, the GP mean itself within a lattice cell of the surface,
-where the interpolation would shrink thin parts: ``ShapeEstimator.refined_inside``;
+where the interpolation would shrink thin parts: ``ShapeEstimator.refined_mean``;
 until 2026-12-05 the interpolated μ everywhere); the same IoU against the
 finger-reachable solid (the true solid closed by a ball of the planner's
 ``tip_radius_m``; in 3D counted above ``min_tip_z_m`` = table + table margin
 + tip radius: :func:`tactile_sim.metrics.reachable_inside`); and the mean
-distance from the true surface to the estimated zero level set.
+distance from the true surface to the estimated zero level set. With the
+explorer's ``evaluation_partial_volume`` (the default since 2026-12-06) a cell a
+surface passes through counts by the fraction of it inside, read the same way
+from μ and from the true sdf (:func:`tactile_sim.metrics.partial_volume_iou`),
+instead of by its centre.
 """
 
 from __future__ import annotations
@@ -29,30 +33,37 @@ class Evaluator:
             experiment.object_name, mode=experiment.mode, **experiment.object_pose_kwargs())
         self.points = metrics.evaluation_lattice(experiment.evaluation_bounds(),
                                                  experiment.evaluation_resolution_m)
+        self.partial_volume = bool(getattr(experiment, "evaluation_partial_volume", True))
         self.true_surface = metrics.true_surface_samples(self.obj)
         planner = experiment.planner_params
         self.tip_radius_m = float(planner.get("tip_radius_m", 0.01))
         self.min_tip_z_m = float(planner.get("min_tip_z_m", 0.015)) if self.obj.dim == 3 else None
-        self._inside_cache: tuple = (None, None, None)  # (estimator, its version, inside test)
+        self._field_cache: tuple = (None, None, None)  # (estimator, its version, its field on the lattice)
 
-    def _inside(self, estimator):
-        """The estimate's inside test on the evaluation lattice, computed once per estimate (both IoUs
-        read it): μ interpolated from the estimator's lattice, the GP mean itself within a lattice cell
-        of the surface (``ShapeEstimator.refined_inside``)."""
+    def _field(self, estimator) -> np.ndarray:
+        """The estimate's field on the evaluation lattice (inside where < 0), computed once per estimate
+        (both IoUs read it): μ interpolated from the estimator's lattice, the GP mean itself within a
+        lattice cell of the surface (``ShapeEstimator.refined_mean``)."""
         version = getattr(estimator, "version", None)  # bumped by every accepted observation
-        held, held_version, ins = self._inside_cache
+        held, held_version, field = self._field_cache
         if version is None or held is not estimator or held_version != version:
-            ins = estimator.refined_inside(self.points)
-            self._inside_cache = (estimator, version, ins)
-        return lambda points: ins if points is self.points else estimator.refined_inside(points)
+            field = estimator.refined_mean(self.points)
+            self._field_cache = (estimator, version, field)
+        return field
 
     def iou(self, estimator) -> float:
-        """IoU of {μ < 0} (see :meth:`_inside`)."""
-        return metrics.iou(self._inside(estimator), self.obj, self.points)
+        """IoU of {μ < 0} against the true solid (partial volume or cell centres: see the module)."""
+        field = self._field(estimator)
+        if self.partial_volume:
+            return metrics.partial_volume_iou(field, self.obj, self.points)
+        return metrics.iou(lambda points: field < 0, self.obj, self.points)
 
     def iou_reachable(self, estimator) -> float:
         """IoU of {μ < 0} against the finger-reachable solid (fair to a finger of radius r)."""
-        return metrics.reachable_iou(self._inside(estimator), self.obj, self.points, self.tip_radius_m,
+        field = self._field(estimator)
+        if self.partial_volume:
+            return metrics.partial_volume_iou(field, self.obj, self.points, self.tip_radius_m, self.min_tip_z_m)
+        return metrics.reachable_iou(lambda points: field < 0, self.obj, self.points, self.tip_radius_m,
                                      self.min_tip_z_m)
 
     def surface_error_m(self, estimator) -> Optional[float]:

@@ -42,6 +42,8 @@ RUN_PARAMETERS = {
     "confidence_max_var_m2": (0.0, "stop when the max variance on the estimated surface is below (0 = off)",
                               Rule(ge=0.0)),
     "evaluation_resolution_m": (0.002, "IoU lattice spacing (simulation only)", Rule(gt=0.0)),
+    "evaluation_partial_volume": (True, "IoU: a cell a surface passes through counts by the fraction of it "
+                                  "inside, not by its centre (tactile_sim.metrics.partial_volume_iou)", Rule()),
     "start_tip_xyz_m": ([0.35, 0.0, 0.06], "tip centre where exploration starts (world)", Rule(length=3)),
 }
 
@@ -124,6 +126,7 @@ class Experiment:
         self.max_travel_m = float(explorer["max_travel_m"])
         self.confidence_max_var_m2 = float(explorer["confidence_max_var_m2"])
         self.evaluation_resolution_m = float(explorer["evaluation_resolution_m"])
+        self.evaluation_partial_volume = bool(explorer["evaluation_partial_volume"])
         self.start_tip_xyz = np.asarray(explorer["start_tip_xyz_m"], dtype=float)
 
     # -- parameters ------------------------------------------------------------
@@ -210,6 +213,8 @@ class Experiment:
             "gpis_estimator": self.gpis_params,
             "soc_planner": self.planner_params,
             "motion": {k: self.planner_params.get(k) for k in ("tip_speed_mps", "approach_speed_mps", "dwell_s")},
+            "evaluation": {"resolution_m": self.evaluation_resolution_m,
+                           "partial_volume": self.evaluation_partial_volume},
         }
 
     def write_overrides(self, path: Path) -> Path:

@@ -635,12 +635,20 @@ class ShapeEstimator:
         False; in 3D also False below the table). Within a cell the interpolation errs by less than
         half its diagonal times |∇μ| ≈ 1, so one cell is enough. This is what the metrics evaluate.
         """
+        return self.refined_mean(points, band_cells) < 0
+
+    def refined_mean(self, points: np.ndarray, band_cells: float = 1.0) -> np.ndarray:
+        """(N,) the field :meth:`refined_inside` reads (inside where < 0): the GP mean within
+        ``band_cells`` lattice cells of the surface, the interpolated lattice mean elsewhere, +inf
+        outside the lattice and, in 3D, below the table."""
         P = self._xy(points)
         mu = self._interpolated_mean(P)
         band = band_cells * max(float(a[1] - a[0]) for a in self.lattice_axes)
         near = np.flatnonzero(np.abs(mu) < band)
         mu[near] = self._predict_in_chunks(P[near])
-        return self._above_table(P, mu < 0)
+        if self.dim == 3:
+            mu[P[:, 2] < 0] = np.inf
+        return mu
 
     def _predict_in_chunks(self, P: np.ndarray, return_var: bool = False):
         """The posterior mean (and variance) at (N, dim) points, 2048 at a time: bounded memory, as a

@@ -5,6 +5,9 @@
 - Reachable IoU: the same IoU against the finger-reachable solid (the
   true solid closed by a ball of the tip radius, above the lowest reachable
   tip height), see :func:`reachable_inside`.
+- Partial-volume IoU (either solid): the cells a surface passes through
+  count by the fraction of them inside, from the estimate's field and the
+  true sdf alike, instead of by their centres: :func:`partial_volume_iou`.
 - Surface error: mean distance from samples of the TRUE surface to the nearest
   point of the estimated zero level set (given as points); also the reverse
   direction (|sdf| of the estimated points, exact), their symmetric mean and
@@ -222,6 +225,145 @@ def reachable_iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.nda
         est, true = est & counted, true & counted
     union = np.count_nonzero(est | true)
     return 1.0 if union == 0 else np.count_nonzero(est & true) / union
+
+
+def _block_any(mask: np.ndarray, shape: tuple) -> np.ndarray:
+    """(M,) bool: some node of each node's 3^dim block (itself and its neighbours) is set."""
+    return ndimage.maximum_filter(mask.reshape(shape).astype(np.uint8), size=3, mode="nearest").ravel() > 0
+
+
+def _block_differs(mask: np.ndarray, shape: tuple) -> np.ndarray:
+    """(M,) bool: the nodes of each node's 3^dim block do not all agree."""
+    g = mask.reshape(shape).astype(np.uint8)
+    return (ndimage.maximum_filter(g, size=3, mode="nearest") != ndimage.minimum_filter(g, size=3, mode="nearest")).ravel()
+
+
+def cell_fraction_below_zero(field: np.ndarray, axes: list[np.ndarray], cells: np.ndarray) -> np.ndarray:
+    """(K,) the fraction of each lattice cell (centre index in ``cells``) where the field (M,) is < 0,
+    the field taken as the plane through its centre value with its central-difference gradient g:
+    clip(1/2 − (f/|g|) / w, 0, 1), w = Σ_k h_k |g_k| / |g| the cell's width along the normal (the
+    partial-volume rule: exact for a plane with an axis-aligned normal, unbiased over offsets for
+    any other). Where g vanishes (a flat field), the centre's sign. The field is clipped to ± two
+    cells first (a distance-like field is unchanged where a plane can cross the cell; far away, or
+    ±inf where it was not computed, it is flat: the centre's sign)."""
+    shape = tuple(len(a) for a in axes)
+    h = np.array([a[1] - a[0] for a in axes])
+    g = np.clip(np.asarray(field, dtype=float), -2.0 * h.max(), 2.0 * h.max()).reshape(shape)
+    idx = np.unravel_index(np.asarray(cells, dtype=np.intp), shape)
+    grad = np.empty((len(idx[0]), len(shape)))
+    for k in range(len(shape)):
+        up, dn = list(idx), list(idx)
+        up[k], dn[k] = np.minimum(idx[k] + 1, shape[k] - 1), np.maximum(idx[k] - 1, 0)
+        grad[:, k] = (g[tuple(up)] - g[tuple(dn)]) / ((up[k] - dn[k]) * h[k])
+    norm = np.linalg.norm(grad, axis=1)
+    value = g[idx]
+    flat = ~(norm > 1e-9)
+    norm[flat] = 1.0
+    width = np.maximum((np.abs(grad) * h).sum(axis=1) / norm, 1e-300)
+    frac = np.clip(0.5 - value / norm / width, 0.0, 1.0)
+    frac[flat] = value[flat] < 0.0
+    return frac
+
+
+@dataclass(frozen=True)
+class LatticeTruth:
+    """The true (or finger-reachable) solid on a lattice, as :func:`partial_volume_iou` reads it
+    (:func:`lattice_truth`)."""
+
+    node: np.ndarray        #: (M,) bool, inside at the cell centres (what :func:`iou` counts)
+    sdf: np.ndarray         #: (M,) the true sdf at the centres (+inf away from the object)
+    resolvable: np.ndarray  #: (M,) bool, the solid is {sdf < 0} throughout the cell's 3^dim block
+    cells: np.ndarray       #: (K,) sorted cells the surface (or, in 3D, min_tip_z_m) passes through
+    min_z: float | None     #: count only what lies at or above this height (3D reachable)
+    axes: list              #: the lattice's axes (:func:`lattice_axes`)
+
+
+def lattice_truth(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: float | None = None,
+                  min_tip_z_m: float | None = None) -> LatticeTruth:
+    """The solid IoU is measured against (the true one, or with ``tip_radius_m`` the finger-reachable
+    one of :func:`reachable_inside`), for :func:`partial_volume_iou`: cached on the object.
+
+    Its cells to resolve are those whose centre lies within half a cell diagonal of the true surface
+    (|sdf| < |h|/2) and, in 3D against the reachable solid, those straddling ``min_tip_z_m``. A cell
+    is resolvable by the sdf unless the reachable solid differs from the true one above
+    ``min_tip_z_m`` in its 3^dim block (a filled slot, a fillet, the space under an overhang): there
+    the lattice's closure is kept, cell by cell."""
+    pts = np.ascontiguousarray(lattice_points, dtype=float)[:, :obj.dim]
+    reach = tip_radius_m is not None
+    zmin = float(min_tip_z_m) if reach and obj.dim == 3 else None
+    key = ("truth", pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest(),
+           None if not reach else round(float(tip_radius_m), 12), None if zmin is None else round(zmin, 12))
+    cache = obj.__dict__.setdefault("_inside_cache", {})
+    if key in cache:
+        return cache[key]
+    axes = lattice_axes(pts)
+    shape = tuple(len(a) for a in axes)
+    h = np.array([a[1] - a[0] for a in axes])
+    node = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m) if reach else true_inside(obj, pts)
+    d = np.full(len(pts), np.inf)
+    near = np.all((pts >= obj.bounds[0] - 3 * h) & (pts <= obj.bounds[1] + 3 * h), axis=1)
+    d[near] = obj.sdf(pts[near])
+    counted = pts[:, 2] >= zmin if zmin is not None else np.ones(len(pts), dtype=bool)
+    # the closure's additions (below min_tip_z_m every node is "inside", and none counts)
+    resolvable = ~_block_any(node & (d >= 0.0) & counted, shape) if reach else np.ones(len(pts), dtype=bool)
+    surface = (np.abs(d) < 0.5 * float(np.linalg.norm(h))) & resolvable
+    floor = np.abs(pts[:, 2] - zmin) < 0.5 * h[2] if zmin is not None else np.zeros(len(pts), dtype=bool)
+    out = LatticeTruth(node, d, resolvable, np.flatnonzero(surface | floor), zmin, axes)
+    if len(cache) >= 8:
+        cache.pop(next(iter(cache)))
+    cache[key] = out
+    return out
+
+
+def partial_volume_iou(est_field: np.ndarray, obj: SDFObject, lattice_points: np.ndarray,
+                       tip_radius_m: float | None = None, min_tip_z_m: float | None = None) -> float:
+    """IoU of the estimate {f < 0} against the true solid (or, with ``tip_radius_m``, the
+    finger-reachable one, counted as :func:`reachable_iou` counts), each cell a surface passes through
+    counted by the fraction of it inside instead of by its centre.
+
+    ``est_field`` (M,) is the estimate's signed field at the lattice nodes (e.g. the GPIS mean; ±inf
+    allowed). The cells resolved are those the true surface passes through (:func:`lattice_truth`)
+    and those whose 3^dim block does not agree on the estimate's sign. In each, the true solid's and
+    the estimate's fractions a, b come from the same rule (:func:`cell_fraction_below_zero`, from the
+    sdf and from the estimate's field: one instrument for both, so a perfect estimate scores 1; where
+    the reachable solid is not the true one the truth keeps its centre's value), and the cell adds
+    min(a, b) to the intersection and max(a, b) to the union (exact for parallel surfaces); in 3D
+    against the reachable solid a cell straddling ``min_tip_z_m`` counts its fraction above it.
+    Other cells count whole, as in :func:`iou`.
+
+    Why: on centres alone, a surface lying a small fraction of a cell from a layer of centres flips
+    that whole layer between the solids on a tiny error (a pole of 9 mm radius on a 4 mm lattice
+    scored 0.66 for an estimate 0.16 mm inside it, 0.95 by fractions). Against closed-form volumes of
+    boxes, cylinders and balls eroded by 0.16–1 mm on a 4 mm lattice, the largest error falls from
+    0.12 (centres) to below 0.01 (tests/sim/test_partial_volume.py). Both empty → 1."""
+    pts = np.ascontiguousarray(lattice_points, dtype=float)
+    f = np.asarray(est_field, dtype=float).ravel()
+    if pts.ndim != 2 or pts.shape[1] < obj.dim or f.shape != (len(pts),):
+        raise ValueError(f"est_field must have one value per lattice point ({len(pts)}), got shape "
+                         f"{np.shape(est_field)}")
+    if np.isnan(f).any():
+        raise ValueError("est_field contains NaN")
+    truth = lattice_truth(obj, pts, tip_radius_m, min_tip_z_m)
+    axes = truth.axes
+    est = f < 0.0
+    w = pts[:, 2] >= truth.min_z if truth.min_z is not None else np.ones(len(pts), dtype=bool)
+    cells = np.union1d(truth.cells, np.flatnonzero(_block_differs(est, tuple(len(a) for a in axes))))
+    whole = np.ones(len(pts), dtype=bool)
+    whole[cells] = False
+    inter = np.count_nonzero(est & truth.node & w & whole)
+    union = np.count_nonzero((est | truth.node) & w & whole)
+    a = truth.node[cells].astype(float)
+    r = truth.resolvable[cells]
+    a[r] = cell_fraction_below_zero(truth.sdf, axes, cells[r])
+    b = cell_fraction_below_zero(f, axes, cells)
+    if truth.min_z is not None:
+        hz = float(axes[2][1] - axes[2][0])
+        c = np.clip((pts[cells, 2] + 0.5 * hz - truth.min_z) / hz, 0.0, 1.0)
+    else:
+        c = np.ones(len(cells))
+    inter += float((np.minimum(a, b) * c).sum())
+    union += float((np.maximum(a, b) * c).sum())
+    return 1.0 if union == 0 else float(inter / union)
 
 
 @dataclass(frozen=True)
