@@ -168,13 +168,6 @@ class LmdpBackend:
         expected = want_travel_m and self.travel_length == "expected"
         if expected:  # d(D − W)/d rate = ℓ∘W  ⇒  du/d rate = −(D − W)⁻¹ (ℓ∘W) u
             du = -solve(graph.length_m.multiply(w).tocsr() @ u)
-        dist = None  # shortest free path length from the start to every node (m), when needed
-
-        def shortest() -> np.ndarray:
-            nonlocal dist
-            if dist is None:
-                dist = csg.dijkstra(graph.length_m, indices=start)
-            return dist
         cost = np.full(len(term_node), np.inf)
         travel = np.full(len(term_node), np.inf)
         ok = reachable & (tn >= 0)
@@ -183,15 +176,17 @@ class LmdpBackend:
         # CG is accurate only relative to max(u): below this floor an entry is noise
         floor = 0.0 if kind == "lu" else 1e3 * self.cg_rtol * float(np.max(np.abs(u)))
         good = un > floor
-        gi = idx[good]
+        gi, far = idx[good], idx[~good]
+        # the shortest free path length from the start to every node (m), where it is needed
+        if (want_travel_m and not expected) or len(far):
+            dist = csg.dijkstra(graph.length_m, indices=start)
         cost[gi] = -np.log(un[good]) + rate * term_len_m[gi]
         if not want_travel_m:
             travel[gi] = np.nan
         elif expected:
             travel[gi] = -du[tn[gi]] / un[good] + term_len_m[gi]
         else:
-            travel[gi] = shortest()[tn[gi]] + term_len_m[gi]
-        far = idx[~good]
+            travel[gi] = dist[tn[gi]] + term_len_m[gi]
         if len(far):
             # beyond the iterative solver's dynamic range: the single best path's LMDP cost
             # (an upper bound: rate·ℓ + log D per step) and its length
@@ -202,7 +197,7 @@ class LmdpBackend:
             bound = phi[tn[far]] + np.log(deg[tn[far]]) + rate * term_len_m[far]
             cmax = float(np.max(cost[gi])) if len(gi) else 0.0
             cost[far] = np.maximum(bound, cmax)
-            travel[far] = shortest()[tn[far]] + term_len_m[far]
+            travel[far] = dist[tn[far]] + term_len_m[far]
         self.last_info.update(solver=kind, rate_per_m=rate, n_beyond_range=int(len(far)),
                               travel_length=self.travel_length)
         indptr, indices = w.indptr, w.indices
