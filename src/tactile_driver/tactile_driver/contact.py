@@ -28,6 +28,10 @@ Per frame (all taxel quantities vectorised over the N taxels):
    good to ~1 mm but the geometric normal there is horizontal whatever the
    surface's slope (up to 35° off in simulation), so the normal is reported
    unknown (NaN) and the estimator uses the point alone.
+7. Indentation (``skin_stiffness_pa_per_m`` > 0): the skin is pressed in by δ
+   under the force F, so the surface point lies δ inside the object; it is
+   moved δ in along the finger normal (:mod:`tactile_driver.skin`; not at the
+   rim, whose normal is not known).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import numpy as np
 
 from tactile_common.touch_geometry import back_off_target  # noqa: F401  (re-exported)
 
+from tactile_driver.skin import SkinIndentation
 from tactile_driver.taxels import TaxelLayout
 
 _SATURATED = 0xFFFF
@@ -58,12 +63,16 @@ class ContactConfig:
     stuck_frames: int = 40
     neighbour_factor: float = 1.8  # neighbours: closer than factor x nearest-taxel distance
     rim_margin_m: float = 0.001  # hemisphere: centre this close to the band top = rim contact, normal unknown
+    skin_stiffness_pa_per_m: float = 2.0e7  # > 0: the contact moved in by the skin's indentation (0 = not)
+    skin_margin_m: float = 0.00625  # how far the compliant skin reaches beyond the sensorised band
 
     def validate(self) -> "ContactConfig":
         if self.counts_per_newton <= 0:
             raise ValueError("counts_per_newton must be > 0")
         if not self.rim_margin_m >= 0:
             raise ValueError("rim_margin_m must be >= 0")
+        if not (self.skin_stiffness_pa_per_m >= 0 and self.skin_margin_m >= 0):
+            raise ValueError("skin_stiffness_pa_per_m and skin_margin_m must be >= 0")
         if not 0 < self.off_threshold_n <= self.on_threshold_n:
             raise ValueError("need 0 < off_threshold_n <= on_threshold_n (hysteresis)")
         if self.calibration_frames < 2 or self.stuck_frames < 2:
@@ -75,15 +84,17 @@ class ContactConfig:
 class ContactEstimate:
     """A contact in the fingertip frame.
 
-    ``point_m``: contact location on the finger surface; ``finger_normal``:
-    outward unit normal of the finger there (the object's outward normal is
-    its negative); ``force_n``: estimated normal force.
+    ``point_m``: contact location, on the object's surface (the finger surface
+    moved in by ``indentation_m``, the skin's compression under the force);
+    ``finger_normal``: outward unit normal of the finger there (the object's
+    outward normal is its negative); ``force_n``: estimated normal force.
     """
 
     point_m: np.ndarray
     finger_normal: np.ndarray
     force_n: float
     n_active: int
+    indentation_m: float = 0.0
 
     def to_world(self, position_m: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """World contact point and the object's outward unit normal there.
@@ -107,6 +118,8 @@ class ContactDetector:
         np.fill_diagonal(d, np.inf)
         radius = config.neighbour_factor * float(np.min(d, axis=1).max())
         self._neighbours = (d < radius).astype(np.float64)  # (N, N), zero diagonal
+        self._skin = (SkinIndentation(layout, config.skin_stiffness_pa_per_m, config.skin_margin_m)
+                      if config.skin_stiffness_pa_per_m > 0 else None)
         self._calib: list[np.ndarray] = []
         self.baseline = np.zeros(n)
         self.noise = np.ones(n)
@@ -189,9 +202,14 @@ class ContactDetector:
         point, normal = self.layout.project_to_surface(centre[None, :])
         if not np.all(np.isfinite(point)):
             return None  # a pressure centroid on the axis has no direction
+        depth = 0.0
         if self.layout.hemisphere and centre[2] >= self.layout.axis_z_range_m[1] - self.config.rim_margin_m:
             normal = np.full_like(normal, np.nan)  # on the rim: the surface's slope is not sensed
-        return ContactEstimate(point_m=point[0], finger_normal=normal[0], force_n=self.force_n, n_active=self.n_active)
+        elif self._skin is not None:
+            depth = self._skin.depth_m(self.force_n, normal[0])
+            point = point - depth * normal
+        return ContactEstimate(point_m=point[0], finger_normal=normal[0], force_n=self.force_n,
+                               n_active=self.n_active, indentation_m=depth)
 
     def _finish_calibration(self) -> None:
         c = np.asarray(self._calib)

@@ -60,6 +60,11 @@ PARAMS = {
     "contact.stuck_frames": (40, "identical values for this many frames: a stuck taxel", {"ge": 1}),
     "contact.rim_margin_m": (0.001, "hemisphere: a pressure centre this close to the top of the band is a rim "
                                     "contact, published with an unknown (NaN) normal", {"ge": 0.0}),
+    "contact.skin_stiffness_pa_per_m": (2.0e7, "skin pressure per metre of compression: a contact is moved in "
+                                               "by the skin's indentation under its force (0 = not; calibrate "
+                                               "by pressing a plane, docs/sensor.md)", {"ge": 0.0}),
+    "contact.skin_margin_m": (0.00625, "how far the compliant skin reaches beyond the sensorised band",
+                              {"ge": 0.0}),
 }
 
 
@@ -73,7 +78,8 @@ class TactileSensorNode(Node):
             off_threshold_n=p.contact_off_threshold_n, noise_gate_sigma=p.contact_noise_gate_sigma,
             min_noise_counts=p.contact_min_noise_counts, min_active_taxels=p.contact_min_active_taxels,
             calibration_frames=p.contact_calibration_frames, stuck_frames=p.contact_stuck_frames,
-            rim_margin_m=p.contact_rim_margin_m,
+            rim_margin_m=p.contact_rim_margin_m, skin_stiffness_pa_per_m=p.contact_skin_stiffness_pa_per_m,
+            skin_margin_m=p.contact_skin_margin_m,
         )
         self.driver = SensorDriver(layout, contact, DriverConfig(
             max_frame_age_s=p.max_frame_age_s, pose_tolerance_s=p.pose_tolerance_s,
