@@ -63,7 +63,7 @@ class ContactConfig:
     stuck_frames: int = 40
     neighbour_factor: float = 1.8  # neighbours: closer than factor x nearest-taxel distance
     rim_margin_m: float = 0.001  # hemisphere: centre this close to the band top = rim contact, normal unknown
-    skin_stiffness_pa_per_m: float = 2.0e7  # > 0: the contact moved in by the skin's indentation (0 = not)
+    skin_stiffness_pa_per_m: float = 0.0  # > 0: the contact moved in by the skin's indentation (0 = not)
     skin_margin_m: float = 0.00625  # how far the compliant skin reaches beyond the sensorised band
 
     def validate(self) -> "ContactConfig":

@@ -60,9 +60,10 @@ PARAMS = {
     "contact.stuck_frames": (40, "identical values for this many frames: a stuck taxel", {"ge": 1}),
     "contact.rim_margin_m": (0.001, "hemisphere: a pressure centre this close to the top of the band is a rim "
                                     "contact, published with an unknown (NaN) normal", {"ge": 0.0}),
-    "contact.skin_stiffness_pa_per_m": (2.0e7, "skin pressure per metre of compression: a contact is moved in "
-                                               "by the skin's indentation under its force (0 = not; calibrate "
-                                               "by pressing a plane, docs/sensor.md)", {"ge": 0.0}),
+    "contact.skin_stiffness_pa_per_m": (0.0, "skin pressure per metre of compression: > 0 moves a contact in "
+                                             "by the skin's indentation under its force (0 = not; the simulated "
+                                             "skin is 2e7; calibrate by pressing a plane, docs/sensor.md)",
+                                        {"ge": 0.0}),
     "contact.skin_margin_m": (0.00625, "how far the compliant skin reaches beyond the sensorised band",
                               {"ge": 0.0}),
 }
