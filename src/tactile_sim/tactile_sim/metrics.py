@@ -55,6 +55,33 @@ def evaluation_lattice(bounds: np.ndarray, resolution_m: float) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(lo))
 
 
+def _lattice_key(tag: str, pts: np.ndarray, *extra) -> tuple:
+    """A cache key: what is cached (``tag``), the lattice (its shape and a hash of its points), ``extra``."""
+    return (tag, pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest(), *extra)
+
+
+def _grid(pts: np.ndarray) -> tuple[list[np.ndarray], tuple, np.ndarray]:
+    """The axes, shape and spacing (per axis) of a regular C-order lattice (:func:`lattice_axes`)."""
+    axes = lattice_axes(pts)
+    return axes, tuple(len(a) for a in axes), np.array([a[1] - a[0] for a in axes])
+
+
+def _sdf_near(obj: SDFObject, pts: np.ndarray, pad_m) -> np.ndarray:
+    """obj.sdf at the points within ``pad_m`` of the object's box, +inf at the others (far: free)."""
+    d = np.full(len(pts), np.inf)
+    near = np.all((pts >= obj.bounds[0] - pad_m) & (pts <= obj.bounds[1] + pad_m), axis=1)
+    d[near] = obj.sdf(pts[near])
+    return d
+
+
+def _cache_put(cache: dict, key: tuple, value, size: int):
+    """Store ``value`` under ``key``, dropping the oldest entry beyond ``size``; returns the value."""
+    if len(cache) >= size:
+        cache.pop(next(iter(cache)))
+    cache[key] = value
+    return value
+
+
 def _estimate_on(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The (M, k) lattice points as floats and the estimate's boolean (M,) inside test on them (checked)."""
     pts = np.asarray(lattice_points, dtype=float)
@@ -82,7 +109,7 @@ def iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray) -> f
 def true_inside(obj: SDFObject, lattice_points: np.ndarray) -> np.ndarray:
     """obj.sdf(points) < 0, cached on the object per lattice (keyed by a hash of the points)."""
     pts = np.ascontiguousarray(lattice_points, dtype=float)
-    key = (pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest())
+    key = _lattice_key("inside", pts)
     cache = obj.__dict__.setdefault("_inside_cache", {})
     if key not in cache:
         if len(cache) >= 4:
@@ -158,18 +185,13 @@ def reachable_inside(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: f
     if obj.dim == 3 and min_tip_z_m is None:
         raise ValueError("a 3D object needs min_tip_z_m (table + table margin + tip radius)")
     zmin = None if obj.dim == 2 else float(min_tip_z_m)
-    key = ("reach", pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest(), round(r, 12),
-           None if zmin is None else round(zmin, 12))
+    key = _lattice_key("reach", pts, round(r, 12), None if zmin is None else round(zmin, 12))
     cache = obj.__dict__.setdefault("_inside_cache", {})
     if key in cache:
         return cache[key]
-    axes = lattice_axes(pts)
-    shape = tuple(len(a) for a in axes)
-    h = np.array([a[1] - a[0] for a in axes])
+    axes, shape, h = _grid(pts)
     # Signed distance where it matters (within r + a cell of the object's box); far nodes are free.
-    d = np.full(len(pts), np.inf)
-    near = np.all((pts >= obj.bounds[0] - r - h.max()) & (pts <= obj.bounds[1] + r + h.max()), axis=1)
-    d[near] = obj.sdf(pts[near])
+    d = _sdf_near(obj, pts, r + h.max())
     centre_ok = d >= r
     if zmin is not None:
         centre_ok &= pts[:, 2] >= zmin
@@ -202,11 +224,7 @@ def reachable_inside(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: f
             idx = np.clip(np.rint((c - origin) / h).astype(int) + pad, 0, np.array(kept.shape) - 1)
             ok &= kept[tuple(idx.T)]
             free[band[ok]] = True
-    inside = ~free | (d < 0.0)
-    if len(cache) >= 8:
-        cache.pop(next(iter(cache)))
-    cache[key] = inside
-    return inside
+    return _cache_put(cache, key, ~free | (d < 0.0), 8)
 
 
 def reachable_iou(inside_est: InsideTest, obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: float,
@@ -291,28 +309,20 @@ def lattice_truth(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: floa
     pts = np.ascontiguousarray(lattice_points, dtype=float)[:, :obj.dim]
     reach = tip_radius_m is not None
     zmin = float(min_tip_z_m) if reach and obj.dim == 3 else None
-    key = ("truth", pts.shape, hashlib.blake2b(pts.tobytes(), digest_size=16).hexdigest(),
-           None if not reach else round(float(tip_radius_m), 12), None if zmin is None else round(zmin, 12))
+    key = _lattice_key("truth", pts, None if not reach else round(float(tip_radius_m), 12),
+                       None if zmin is None else round(zmin, 12))
     cache = obj.__dict__.setdefault("_inside_cache", {})
     if key in cache:
         return cache[key]
-    axes = lattice_axes(pts)
-    shape = tuple(len(a) for a in axes)
-    h = np.array([a[1] - a[0] for a in axes])
+    axes, shape, h = _grid(pts)
     node = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m) if reach else true_inside(obj, pts)
-    d = np.full(len(pts), np.inf)
-    near = np.all((pts >= obj.bounds[0] - 3 * h) & (pts <= obj.bounds[1] + 3 * h), axis=1)
-    d[near] = obj.sdf(pts[near])
+    d = _sdf_near(obj, pts, 3 * h)
     counted = pts[:, 2] >= zmin if zmin is not None else np.ones(len(pts), dtype=bool)
     # the closure's additions (below min_tip_z_m every node is "inside", and none counts)
     resolvable = ~_block_any(node & (d >= 0.0) & counted, shape) if reach else np.ones(len(pts), dtype=bool)
     surface = (np.abs(d) < 0.5 * float(np.linalg.norm(h))) & resolvable
     floor = np.abs(pts[:, 2] - zmin) < 0.5 * h[2] if zmin is not None else np.zeros(len(pts), dtype=bool)
-    out = LatticeTruth(node, d, resolvable, np.flatnonzero(surface | floor), zmin, axes)
-    if len(cache) >= 8:
-        cache.pop(next(iter(cache)))
-    cache[key] = out
-    return out
+    return _cache_put(cache, key, LatticeTruth(node, d, resolvable, np.flatnonzero(surface | floor), zmin, axes), 8)
 
 
 def partial_volume_iou(est_field: np.ndarray, obj: SDFObject, lattice_points: np.ndarray,
