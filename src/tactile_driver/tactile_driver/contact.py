@@ -84,8 +84,9 @@ class ContactConfig:
 class ContactEstimate:
     """A contact in the fingertip frame.
 
-    ``point_m``: contact location, on the object's surface (the finger surface
-    moved in by ``indentation_m``, the skin's compression under the force);
+    ``point_m``: contact location on the finger surface, moved in by
+    ``indentation_m`` (the skin's compression under the force, 0 unless
+    ``skin_stiffness_pa_per_m`` > 0: then it is on the object's surface);
     ``finger_normal``: outward unit normal of the finger there (the object's
     outward normal is its negative); ``force_n``: estimated normal force.
     """

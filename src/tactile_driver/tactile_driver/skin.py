@@ -4,7 +4,7 @@ A contact is located on the *undeformed* finger surface (``contact.py``), but
 the skin is compliant: to push with force F the finger has moved a depth δ
 into the object, so that point lies δ inside the object's surface (in
 simulation 0.1–0.4 mm at the 0.05 N onset, ~0.5 mm at a slide's 0.15 N: every
-contact sat inside the true surface, and the estimate with it).
+contact sits that far inside the true surface unless the driver reads δ off).
 
 Spring skin of stiffness k (pressure per metre of compression, Pa/m) against a
 plane with outward normal −n (n: the finger's outward normal at the contact):
