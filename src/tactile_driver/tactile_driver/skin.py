@@ -49,8 +49,7 @@ class SkinIndentation:
         cum_a, cum_ah = np.cumsum(a), np.cumsum(a * h)
         # F at the breakpoints L = h_j: the samples above h_j (the first j + 1) compressed by h − h_j
         f_break = self.stiffness_pa_per_m * (cum_ah - h * cum_a)
-        j = min(int(np.searchsorted(f_break, force_n, side="right")) - 1, len(h) - 1)
-        j = max(j, 0)
+        j = int(np.searchsorted(f_break, force_n, side="right")) - 1  # ≥ 0: f_break[0] = 0 < force_n
         # between h_{j+1} and h_j the set above L is fixed: F = k (Σ A h − L Σ A), linear in L
         level = (cum_ah[j] - force_n / self.stiffness_pa_per_m) / cum_a[j]
         return float(h[0] - level)

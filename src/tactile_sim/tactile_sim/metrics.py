@@ -111,16 +111,10 @@ def true_inside(obj: SDFObject, lattice_points: np.ndarray) -> np.ndarray:
     pts = np.ascontiguousarray(lattice_points, dtype=float)
     key = _lattice_key("inside", pts)
     cache = obj.__dict__.setdefault("_inside_cache", {})
-    if key not in cache:
-        if len(cache) >= 4:
-            cache.pop(next(iter(cache)))
-        p = pts[:, :obj.dim]
-        # Only points inside the object's bounding box can be inside (saves most SDF calls).
-        box = np.all((p >= obj.bounds[0]) & (p <= obj.bounds[1]), axis=1)
-        inside = np.zeros(len(p), dtype=bool)
-        inside[box] = obj.sdf(p[box]) < 0.0
-        cache[key] = inside
-    return cache[key]
+    if key in cache:
+        return cache[key]
+    # Only points inside the object's bounding box can be inside (saves most SDF calls).
+    return _cache_put(cache, key, _sdf_near(obj, pts[:, :obj.dim], 0.0) < 0.0, 4)
 
 
 def lattice_axes(lattice_points: np.ndarray) -> list[np.ndarray]:
@@ -315,8 +309,8 @@ def lattice_truth(obj: SDFObject, lattice_points: np.ndarray, tip_radius_m: floa
     if key in cache:
         return cache[key]
     axes, shape, h = _grid(pts)
-    node = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m) if reach else true_inside(obj, pts)
     d = _sdf_near(obj, pts, 3 * h)
+    node = reachable_inside(obj, pts, tip_radius_m, min_tip_z_m) if reach else d < 0.0
     counted = pts[:, 2] >= zmin if zmin is not None else np.ones(len(pts), dtype=bool)
     # the closure's additions (below min_tip_z_m every node is "inside", and none counts)
     resolvable = ~_block_any(node & (d >= 0.0) & counted, shape) if reach else np.ones(len(pts), dtype=bool)
