@@ -155,10 +155,11 @@ start() {  # start EXECUTABLE: a node in the background (its own node name), log
   launch $((${#names[@]} - 1))
 }
 recover_recording() {  # recover_recording FILE: rewrite a recording cut by a crash so that all of it reads
-  local f="$1"
+  local f="$1" cut_bytes
+  cut_bytes=$(stat -c %s "$f" 2>/dev/null || echo "?")  # what the recorder wrote; the rewrite adds indexes
   python -m tactile_bringup.mcap_recorder --recover "$f" "$f.recovering" >> "$log_dir/recorder.log" 2>&1 \
     && mv "$f.recovering" "$f" \
-    && echo "explore.sh: $(basename "$f") was cut by the recorder's crash: recovered (every message up to the cut)" >&2 \
+    && echo "explore.sh: $(basename "$f") was cut at $cut_bytes bytes by the recorder's crash: recovered (every message up to the cut, with the index a finished file has)" >&2 \
     || { rm -f "$f.recovering"; echo "explore.sh: could not recover $(basename "$f"); see logs/recorder.log" >&2; }
 }
 

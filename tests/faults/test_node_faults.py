@@ -163,7 +163,11 @@ def test_a_recorder_whose_disk_fills_mid_run_is_restarted_into_the_next_file_and
     report = json.loads((out / "report.json").read_text())
     assert len(report["touches"]) == touches and report["summary"]["stopped_because"] == "touch budget"
     cut, restarted = out / "run.mcap", out / "run.1.mcap"
-    assert cut.stat().st_size <= 1536 * 1024 and restarted.stat().st_size > 0
+    # the limit held: the recorder wrote at most 1.5 MiB (the recovered rewrite adds the summary and indexes a
+    # finished file has, so its own size may exceed what was written)
+    written = re.search(r"run\.mcap was cut at (\d+) bytes", said)
+    assert written and 0 < int(written.group(1)) <= 1536 * 1024, said[-3000:]
+    assert restarted.stat().st_size > 0
     # both files read whole with an independent reader, and together they hold every touch's contact
     recorded = np.vstack([_contact_points(cut), _contact_points(restarted)])
     assert len(_contact_points(cut)) > 0, "the disk filled before the first contact: raise the limit"
