@@ -29,6 +29,19 @@ the estimate narrows below twice the margin but not below the finger is a
 path, at a price, instead of a wall (docs/planner.md). Shortcuts still keep
 the margin; a candidate's last segment from a narrow node keeps the finger's
 room.
+
+The finger's shaft (3D, ``shaft_length_m > 0``): the finger is a rod that rises
+vertically from the tip (the commander keeps it within a few degrees of
+vertical), so a tip position is only free when the rod above it clears the
+estimated object too. With s(x) = min of c over the lattice nodes above x up to
+``shaft_length_m`` (+inf above the lattice: :func:`shaft_column_min`), the
+clearance the graph tests becomes min(c, s − ``shaft_clearance_m`` + margin):
+a node is free when c ≥ margin and s ≥ ``shaft_clearance_m`` (the rod's radius
+plus the tip's skin clearance), so no node, edge or shortcut lies under an
+overhang of the estimate. The clearance c itself is kept (``shaft_field_m``) for
+the planner's checks of the rod above a tip that meets the surface, sampled
+along the rod (:meth:`FreeSpaceGraph.rod_clearance_m`; docs/planner.md, "The
+finger's shaft").
 """
 
 from __future__ import annotations
@@ -61,6 +74,8 @@ class FreeSpaceGraph:
         finger_m: the clearance the narrow nodes keep (``build_free_graph``'s ``narrow_penalty``), below
             ``margin_m``; None without them.
         clearance_field_m: the clearance c on the lattice (lattice shape, m; see the module docstring).
+        shaft_field_m, shaft_length_m: 3D with the finger's shaft: the clearance the rod is checked against
+            (lattice shape, m: c before the rod's term) and the rod's length; None and 0 without.
     """
 
     lattice: MapLattice
@@ -73,6 +88,21 @@ class FreeSpaceGraph:
     min_z_m: float
     clearance_field_m: np.ndarray | None = None
     finger_m: float | None = None
+    shaft_field_m: np.ndarray | None = None
+    shaft_length_m: float = 0.0
+
+    def rod_clearance_m(self, p_xyz: np.ndarray, start_m: float, step_m: float = 0.004) -> np.ndarray:
+        """The estimated clearance of a vertical rod above each (M, 3) tip centre: the minimum of the
+        clearance c (multilinear) at z + ``start_m`` … z + ``shaft_length_m``, every ``step_m`` (+inf
+        without a shaft; above the lattice nothing limits)."""
+        p = np.asarray(p_xyz, float).reshape(-1, 3)
+        if self.shaft_field_m is None:
+            return np.full(len(p), np.inf)
+        up = start_m + np.arange(0.0, max(self.shaft_length_m - start_m, 0.0) + 1e-12, step_m)
+        rod = p[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+        interp = RegularGridInterpolator(self.lattice.axes, self.shaft_field_m, bounds_error=False,
+                                         fill_value=np.inf)
+        return interp(rod.reshape(-1, 3)).reshape(len(p), len(up)).min(axis=1)
 
     @property
     def n_nodes(self) -> int:
@@ -192,6 +222,26 @@ def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray
     return sign * np.minimum(d, max_m).reshape(mu.shape)
 
 
+def shaft_column_min(field: np.ndarray, z_axis_m: np.ndarray, length_m: float) -> np.ndarray:
+    """s[..., k] = min of ``field`` over the nodes k + 1 … k + K of the same (x, y) column, K the nodes
+    within ``length_m`` above (z the last axis; +inf where none: above the lattice nothing limits)."""
+    dz = float(z_axis_m[1] - z_axis_m[0])
+    K = min(int(np.floor(length_m / dz + 1e-9)), field.shape[-1] - 1)
+    win = np.full(field.shape, np.inf)  # win[k] = min over the next p nodes, p doubling up to K
+    if K < 1:
+        return win
+    win[..., :-1] = field[..., 1:]
+    p = 1
+    while 2 * p <= K:
+        nxt = win.copy()
+        np.minimum(nxt[..., :-p], win[..., p:], out=nxt[..., :-p])
+        win, p = nxt, 2 * p
+    out = win.copy()  # the next K = the next p and the p ending K nodes up (they overlap)
+    if K > p:
+        np.minimum(out[..., :-(K - p)], win[..., K - p:], out=out[..., :-(K - p)])
+    return out
+
+
 def _view(padded: np.ndarray, off: tuple, shape: tuple) -> np.ndarray:
     """``padded`` (padded by 1) shifted by ``off``: value at lattice index a + off."""
     return padded[tuple(slice(1 + o, 1 + o + n) for o, n in zip(off, shape))]
@@ -292,6 +342,8 @@ def build_free_graph(
     bridge_clearance_m: float = 0.0,
     bridge_max_m: float = 0.0,
     narrow_penalty: float = 0.0,
+    shaft_length_m: float = 0.0,
+    shaft_clearance_m: float = 0.0,
 ) -> FreeSpaceGraph:
     """Free-space graph of a lattice (see the module docstring for the rules).
 
@@ -312,6 +364,8 @@ def build_free_graph(
             the margin (a slot it narrows), at a price. Shortcuts keep the margin; a candidate's last
             segment from a narrow node keeps the finger's room (``finger_m``); the bridge is not needed
             (nothing with the finger's room is cut off).
+        shaft_length_m, shaft_clearance_m: 3D, ``shaft_length_m > 0``: a node is free only when the column
+            above it up to ``shaft_length_m`` keeps clearance ``shaft_clearance_m`` too (module docstring).
     """
     mu = lattice.mean_m
     if clearance == "distance":
@@ -330,6 +384,10 @@ def build_free_graph(
         allowed &= (lattice.axes[2] >= min_z_m)[None, None, :]
     if shell_m > 0:
         allowed &= cl <= margin_m + shell_m
+    rod_field = None
+    if lattice.dim == 3 and shaft_length_m > 0:  # the rod above the tip: free only under a clear column
+        rod_field = cl
+        cl = np.minimum(cl, shaft_column_min(cl, lattice.axes[2], shaft_length_m) - shaft_clearance_m + margin_m)
     finger_m = None
     if narrow_penalty > 0 and bridge_clearance_m < margin_m:  # no bridge: nothing with the finger's room is cut off
         free, edges = _narrow(allowed, cl, margin_m, bridge_clearance_m, narrow_penalty, lattice.spacing_m)
@@ -350,5 +408,6 @@ def build_free_graph(
         lattice=lattice, free=free, node_of_grid=node_of_grid, grid_of_node=grid_of_node,
         xyz=xyz, length_m=length, margin_m=float(margin_m),
         min_z_m=float(min_z_m) if lattice.dim == 3 else -np.inf,
-        clearance_field_m=None if clearance == "mean" else cl, finger_m=finger_m,
+        clearance_field_m=None if clearance == "mean" and rod_field is None else cl, finger_m=finger_m,
+        shaft_field_m=rod_field, shaft_length_m=float(shaft_length_m) if rod_field is not None else 0.0,
     )

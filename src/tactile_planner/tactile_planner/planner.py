@@ -93,6 +93,14 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "min_standoff_m": (0.002, "2D: a pre-touch point without the finger's own room (tip_radius_m + pocket_gap_m; "
                        "a side wall whose slot is narrower than standoff + radius + that room) moves in along its normal, "
                        "down to this standoff (tactile_planner.pocket.closer_pretouch; ≥ standoff_m = off)", {"ge": 0.0}),
+    "shaft_clear": (True, "3D: no path, approach or slide puts the finger's rod (vertical, above the tip) into the "
+                    "estimated object (docs/planner.md, \"The finger's shaft\"; false: the rod is not considered)"),
+    "shaft_length_m": (0.16, "3D: the finger's rod above the tip centre, up to the flange (the commander's "
+                       "tip_offset_m)", {"gt": 0.0}),
+    "shaft_radius_m": (0.005, "3D: the finger rod's radius; on paths the rod keeps it plus the tip's skin "
+                       "clearance (margin_m − tip_radius_m) from the estimated surface", {"gt": 0.0}),
+    "shaft_gap_m": (0.002, "3D: on an approach or a slide, where the tip meets the surface, the rod keeps its "
+                    "radius plus this from the estimated surface", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -286,6 +294,23 @@ class TouchPlanner:
                 return searched
         return res
 
+    def _shaft_graph_params(self, dim: int) -> tuple[float, float]:
+        """(length, clearance) of the rod for :func:`build_free_graph`: on paths it keeps its radius plus the
+        tip's skin clearance (margin_m − tip_radius_m); (0, 0) in 2D or without a shaft."""
+        p = self.params
+        if dim != 3 or not bool(p["shaft_clear"]):
+            return 0.0, 0.0
+        skin = max(float(p["margin_m"]) - float(p["tip_radius_m"]), 0.0)
+        return float(p["shaft_length_m"]), float(p["shaft_radius_m"]) + skin
+
+    def _shaft_check(self, graph, tip_radius_m: float):
+        """Where the tip meets the surface (approach, slide): a function of (M, 3) tip centres, True where the
+        rod above keeps ``shaft_radius_m + shaft_gap_m`` from the estimated surface; None without a shaft."""
+        if graph.shaft_field_m is None:
+            return None
+        need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
+        return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
+
     def _min_tip_z_m(self, dim: int) -> float:
         """The lowest tip-centre height a touch may reach: ``min_tip_z_m`` in 3D, none in 2D (a section)."""
         return float(self.params["min_tip_z_m"]) if dim == 3 else -np.inf
@@ -415,7 +440,8 @@ class TouchPlanner:
         graph = build_free_graph(lattice, float(p["margin_m"]), float(p["shell_m"]),
                                  float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]),
                                  finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0,
-                                 float(p["narrow_penalty"]) if dim == 2 else 0.0)
+                                 float(p["narrow_penalty"]) if dim == 2 else 0.0,
+                                 *self._shaft_graph_params(dim))
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:
@@ -425,6 +451,16 @@ class TouchPlanner:
             if tight.any():
                 pretouch[tight] = closer_pretouch(graph, target[tight], normal[tight], geometry.pretouch_offset_m,
                                                   geometry.tip_radius_m + float(p["min_standoff_m"]), finger_m)
+        shaft_ok = self._shaft_check(graph, geometry.tip_radius_m)
+        if shaft_ok is not None:  # the rod above the tip on the approach, down to the expected contact
+            t = np.linspace(0.0, 1.0, 6)[None, :, None]
+            seg = pretouch[:, None, :] + t * (target + geometry.tip_radius_m * normal - pretouch)[:, None, :]
+            ask = valid & ~hard  # the others are out already
+            blocked = np.zeros(m, bool)
+            blocked[ask] = ~shaft_ok(seg[ask].reshape(-1, 3)).reshape(int(ask.sum()), -1).all(axis=1)
+            why["the finger's shaft would enter the estimate"] = blocked
+            hard |= blocked
+            excluded |= blocked
         start = graph.nearest_node(tip)
         # outside the band/shell the tip joins the graph by a straight segment; it is
         # "snapped" when it is inside the margin or that segment is not free
@@ -495,9 +531,11 @@ class TouchPlanner:
         idx = int(np.argmax(scores))
         slide = None
         if p["touch"] == "slide":  # the slide with the most variance removed per second (tactile_planner.slides)
+            tip_ok = None if shaft_ok is None else (
+                lambda x, n: shaft_ok(x + geometry.tip_radius_m * n))  # the rod above the sliding tip
             slide = slides.choose_slide(lattice, target, normal, reachable, sol.travel_m, MotionModel.from_params(p),
                                         float(p["standoff_m"]), slides.SlideParams.from_params(p),
-                                        self._min_tip_z_m(lattice.dim))
+                                        self._min_tip_z_m(lattice.dim), tip_ok)
             if slide.index >= 0:
                 idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)

@@ -37,7 +37,7 @@ candidates and K = max length / step.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, Optional
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
@@ -148,12 +148,16 @@ class _Field:
 
 
 def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, step_m: float,
-          n_steps: int, min_z_m: float = -np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          n_steps: int, min_z_m: float = -np.inf,
+          surface_ok: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None,
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Trace paths along μ = 0 (module docstring) from (M, 3) starts along (M, 3) tangents.
 
     Returns (points (M, K+1, 3), variance (M, K+1), valid (M, K+1) bool); a
     path is valid up to its first invalid step (3D: a point below ``min_z_m``
-    is invalid). In 2D the z column is the start's.
+    is invalid, and with ``surface_ok`` one where ``surface_ok(points, unit
+    normals)`` ((M, 3) each) is False: the planner's check of the finger's
+    shaft above the tip). In 2D the z column is the start's.
     """
     field = _Field(lattice)
     d = field.dim
@@ -187,6 +191,8 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
         t = np.where(tn > 1e-6, tt / np.maximum(tn, 1e-12), t)
         if d == 3:
             alive &= x[:, 2] >= min_z_m
+            if surface_ok is not None and alive.any():  # only the paths still going
+                alive[alive] = surface_ok(x[alive], nh[alive])
         pts[:, k] = x
         ok[:, k] = alive
     var = field.var(pts.reshape(-1, d)).reshape(M, n_steps + 1)
@@ -198,12 +204,14 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
 
 def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.ndarray, reachable: np.ndarray,
                  travel_m: np.ndarray, motion: MotionModel, approach_m: float, params: SlideParams,
-                 min_z_m: float = -np.inf) -> SlideChoice:
+                 min_z_m: float = -np.inf,
+                 surface_ok: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None) -> SlideChoice:
     """The slide with the most uncertainty removed per second (module docstring).
 
     ``travel_m`` (M,): LMDP path length from the tip to each candidate's
     pre-touch point; ``approach_m``: the expected approach (and retract) length;
-    ``min_z_m``: 3D, the lowest tip-centre height (a path below it is cut there).
+    ``min_z_m``: 3D, the lowest tip-centre height (a path below it is cut there);
+    ``surface_ok``: 3D, where a path may go (:func:`trace`; it is cut at the first point that fails).
     """
     M = len(target_xyz)
     h = float(params.trace_step_m)
@@ -220,7 +228,7 @@ def choose_slide(lattice: MapLattice, target_xyz: np.ndarray, normal_xyz: np.nda
     # rows direction-major: row j = direction j // m of candidate idx[j % m]
     starts = np.tile(np.asarray(target_xyz, dtype=float)[idx], (D, 1))
     tangents = dirs[idx].transpose(1, 0, 2).reshape(-1, 3)
-    pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m)
+    pts, var, ok = trace(lattice, starts, tangents, h, K, min_z_m, surface_ok)
     valid = np.cumprod(ok, axis=1).astype(bool)  # valid up to the first failure
     if params.value == "wrong_surface":  # the chance the surface there is off by more than τ
         per_m = wrong_probability(var, params.known_tolerance_m)
