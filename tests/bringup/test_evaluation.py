@@ -50,3 +50,49 @@ def test_the_default_counts_partial_volumes_of_the_gp_mean():
     assert iou == pytest.approx(metrics.partial_volume_iou(mean, ev.obj, ev.points), abs=1e-3)
     assert reach == pytest.approx(metrics.partial_volume_iou(mean, ev.obj, ev.points, ev.tip_radius_m), abs=1e-3)
     assert 0.5 < iou < 1.0
+
+
+def test_the_rods_true_clearance_is_the_distance_from_the_rod_to_the_sphere_less_its_radius():
+    """The default sphere (radius 5 cm, centre (0.5, 0, 0.05)): a vertical rod beside it at horizontal
+    distance d from the centre clears it by d − R; one that rises through it is as deep as its centre."""
+    exp = Experiment(mode="3d", object_name="sphere", touches=1, seed=0)
+    ev = Evaluator(exp)
+    R, rs, centre = 0.05, ev.shaft_radius_m, np.array([0.5, 0.0, 0.05])
+    beside = np.array([[0.5 + 0.07, -0.05, 0.02], [0.5 + 0.07, 0.05, 0.02]])  # the rod spans z = 0.05 at x = c + 7 cm
+    assert ev.shaft_clearance_m(beside) == pytest.approx(0.07 - R - rs, abs=1e-5)
+    # the track passes 7 cm from the centre at its nearest (y = 0): the rod is 2 cm off the surface there
+    under = np.array([[0.62, 0.0, 0.016], [0.50, 0.0, 0.016]])  # under the ball to its axis (a rod sample at z = 0.05)
+    assert ev.shaft_clearance_m(under) == pytest.approx(-R - rs, abs=1e-5)
+    assert ev.shaft_clearance_m(np.zeros((0, 3))) is None
+    assert Evaluator(Experiment(mode="2d", object_name="ellipse", touches=1, seed=0)).shaft_clearance_m(beside) is None
+    assert 0.016 + 0.01 < centre[2] < 0.016 + 0.16  # the rod (from the tip's top to the flange) spans the centre
+
+
+def test_the_summary_counts_the_touches_whose_rod_entered_the_object():
+    from tactile_bringup.report import summarise
+
+    touches = [{"travel_m": 0.1 * i, "time_s": i, "iou": 0.5, "iou_reachable": 0.5, "shaft_clearance_m": c}
+               for i, c in enumerate([0.004, -0.002, 0.0049, -0.01])]
+    assert summarise(touches, 0.1, "touch budget")["shaft_collisions"] == 2
+    for t in touches:
+        t["shaft_clearance_m"] = None  # 2D
+    assert summarise(touches, 0.1, "touch budget")["shaft_collisions"] is None
+
+
+def test_the_tip_track_of_a_touch_ends_where_the_tip_centre_met_the_surface():
+    from types import SimpleNamespace
+
+    from tactile_bringup.progress import _tip_track
+
+    path = [[0.40, 0.0, 0.10], [0.50, 0.0, 0.10]]
+    c = np.array([0.50, 0.0, 0.08])
+    got = _tip_track(path, True, c, [0.0, 0.0, 2.0], None, 0.01)  # any length of normal
+    np.testing.assert_allclose(got, [path[0], path[1], [0.50, 0.0, 0.09]])
+    # no normal (a rim contact): r back along the approach, towards where it began
+    np.testing.assert_allclose(_tip_track(path, True, c, [np.nan] * 3, None, 0.01)[-1], [0.50, 0.0, 0.09])
+    np.testing.assert_allclose(_tip_track(path, False, c, None, None, 0.01)[-1], c)  # a miss: the probe's end
+    slide = SimpleNamespace(n_contacts=2, points_xyz=np.array([[0.5, 0.01, 0.08], [0.5, 0.02, 0.08]]),
+                            normals_xyz=np.array([[1.0, 0, 0], [np.nan, 0, 0]]))
+    got = _tip_track(path, True, c, [0.0, 0.0, 1.0], slide, 0.01)
+    np.testing.assert_allclose(got[-1], [0.51, 0.01, 0.08])  # the slide's contact with a normal, not the other
+    assert len(got) == 4

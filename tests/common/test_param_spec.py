@@ -147,3 +147,18 @@ def test_contradictions_are_named(tmp_path, yaml_text, expected):
     with pytest.raises(ParamsError) as info:
         Experiment(mode="2d", user_params_files=[f])
     assert len(info.value.errors) == 1 and expected in info.value.errors[0], info.value.errors
+
+
+def test_a_finger_rod_shorter_than_the_finger_is_named_in_3d(tmp_path):
+    from tactile_bringup.experiment import Experiment
+    from tactile_bringup.param_checks import ParamsError
+
+    f = tmp_path / "user.yaml"
+    f.write_text("soc_planner:\n  ros__parameters:\n    shaft_length_m: 0.1\n")
+    with pytest.raises(ParamsError) as info:
+        Experiment(mode="3d", user_params_files=[f])
+    assert len(info.value.errors) == 1 and "shorter than the finger, arm_commander.tip_offset_m = 0.16" \
+        in info.value.errors[0], info.value.errors
+    Experiment(mode="2d", user_params_files=[f])  # 2D keeps no rod clear: nothing to contradict
+    f.write_text("soc_planner:\n  ros__parameters:\n    shaft_length_m: 0.1\n    shaft_clear: false\n")
+    Experiment(mode="3d", user_params_files=[f])

@@ -13,6 +13,12 @@ explorer's ``evaluation_partial_volume`` (the default since 2026-12-06) a cell a
 surface passes through counts by the fraction of it inside, read the same way
 from μ and from the true sdf (:func:`tactile_sim.metrics.partial_volume_iou`),
 instead of by its centre.
+
+In 3D, the true clearance of the finger's rod over a touch
+(:meth:`Evaluator.shaft_clearance_m`): the smallest distance between the true
+surface and the vertical rod above the tip (the planner's ``shaft_length_m``,
+``shaft_radius_m``) along the tip's path, approach and slide; < 0: the rod went
+into the object (a collision on a real rig).
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ class Evaluator:
         self.tip_radius_m = float(planner.get("tip_radius_m", 0.01))
         self.min_tip_z_m = float(planner.get("min_tip_z_m", 0.015)) if self.obj.dim == 3 else None
         self._field_cache: tuple = (None, None, None)  # (estimator, its version, its field on the lattice)
+        self.shaft_length_m = float(planner.get("shaft_length_m", 0.16))
+        self.shaft_radius_m = float(planner.get("shaft_radius_m", 0.005))
 
     def _field(self, estimator) -> np.ndarray:
         """The estimate's field on the evaluation lattice (inside where < 0), computed once per estimate
@@ -65,6 +73,24 @@ class Evaluator:
             return metrics.partial_volume_iou(field, self.obj, self.points, self.tip_radius_m, self.min_tip_z_m)
         return metrics.reachable_iou(lambda points: field < 0, self.obj, self.points, self.tip_radius_m,
                                      self.min_tip_z_m)
+
+    def shaft_clearance_m(self, tip_path_xyz: np.ndarray, step_m: float = 0.002) -> Optional[float]:
+        """3D: min over the polyline the tip centre followed, (K, 3) world frame sampled every ``step_m``,
+        of the true sdf along the vertical rod above the tip (from its top, r above the centre, up
+        ``shaft_length_m``, every ``step_m``) minus ``shaft_radius_m`` (m; < 0: the rod entered the
+        object). None in 2D (the rod stands beside a prism's walls) or for an empty path."""
+        P = np.asarray(tip_path_xyz, dtype=float).reshape(-1, 3)
+        P = P[np.isfinite(P).all(axis=1)]
+        if self.obj.dim != 3 or not len(P) or self.shaft_length_m <= 0:
+            return None
+        seg = [P[:1]]
+        for a, b in zip(P[:-1], P[1:]):
+            n = max(int(np.ceil(np.linalg.norm(b - a) / step_m)), 1)
+            seg.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
+        tips = np.vstack(seg)
+        up = self.tip_radius_m + np.arange(0.0, self.shaft_length_m - self.tip_radius_m + 1e-12, step_m)
+        rod = tips[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+        return float(np.min(self.obj.sdf(rod.reshape(-1, 3)))) - self.shaft_radius_m
 
     def surface_error_m(self, estimator) -> Optional[float]:
         surface = estimator.surface_points()

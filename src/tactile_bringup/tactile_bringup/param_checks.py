@@ -185,6 +185,10 @@ def check_contradictions(exp: "Experiment") -> list[str]:
     if float(p["margin_m"]) >= float(p["standoff_m"]) + float(p["tip_radius_m"]):
         errors.append(f"soc_planner.margin_m = {p['margin_m']}: must be below standoff_m + tip_radius_m = "
                       f"{float(p['standoff_m']) + float(p['tip_radius_m']):g} m, or no pre-touch point is free")
+    if dim == 3 and bool(p["shaft_clear"]) and float(p["shaft_length_m"]) < float(a["tip_offset_m"]) - 1e-9:
+        errors.append(f"soc_planner.shaft_length_m = {p['shaft_length_m']}: shorter than the finger, "
+                      f"arm_commander.tip_offset_m = {a['tip_offset_m']} (the rod from the tip centre to the flange): "
+                      "the planner would not keep the rest of it clear of the object; set both")
     if p.get("touch") == "slide":  # the servo is the commander's; the offline loop reads the same keys
         from tactile_driver.slide_servo import SlideServoConfig
 

@@ -63,6 +63,28 @@ def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
     return np.round(P, 4).tolist()
 
 
+def _tip_track(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide, tip_radius_m: float) -> np.ndarray:
+    """Where the tip centre went in one touch, (K, 3) world frame: the free-space path, the approach's
+    end (the contact's tip centre: point + r·n, or without a normal r back towards the path's end, where
+    the approach began; a miss: the probe's end) and a slide's contacts' tip centres."""
+    rows = [np.asarray(path, dtype=float).reshape(-1, 3)] if path else []
+    point = np.asarray(point_xyz, dtype=float).reshape(3)
+    if contact:
+        n = np.asarray([np.nan] * 3 if normal_xyz is None else normal_xyz, dtype=float).reshape(3)
+        if not (np.isfinite(n).all() and np.linalg.norm(n) > 0) and rows and len(rows[0]):
+            n = rows[0][-1] - point
+        norm = float(np.linalg.norm(n))
+        rows.append((point + tip_radius_m * n / norm)[None] if np.isfinite(norm) and norm > 0 else point[None])
+    else:
+        rows.append(point[None])
+    if slide is not None and slide.n_contacts:
+        n = slide.normals_xyz
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        ok = np.isfinite(norm[:, 0]) & (norm[:, 0] > 0)
+        rows.append(slide.points_xyz[ok] + tip_radius_m * n[ok] / norm[ok])
+    return np.vstack(rows) if rows else np.zeros((0, 3))
+
+
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
                  time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
                  path_xyz=None, path_followed_m: Optional[float] = None, slide=None,
@@ -82,6 +104,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
     """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
+    path = _path_record(path_xyz, path_followed_m)
     return {
         "index": index,
         "target": _round(target_xyz),
@@ -96,7 +119,9 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "surface_error_m": evaluator.surface_error_m(estimator) if evaluator else None,
         "decision_ms": float(decision_ms),
         "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,
-        "path": _path_record(path_xyz, path_followed_m),
+        "path": path,
+        "shaft_clearance_m": evaluator.shaft_clearance_m(_tip_track(path, contact, point_xyz, normal_xyz, slide,
+                                                                     evaluator.tip_radius_m)) if evaluator else None,
         "touch": "poke" if slide is None else "slide",
         "slide_m": None if slide is None else float(slide.slid_m),
         "slide_stop": None if slide is None else slide.stop.value,

@@ -84,6 +84,9 @@ def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_becau
     seen = [t.get("iou_reachable") for t in touches if t.get("iou_reachable") is not None]
     summary["best_iou_reachable"] = max(seen) if seen else None
     summary["drop_from_best_reachable"] = (max(seen) - seen[-1]) if seen else None
+    # 3D: touches whose track put the finger's rod into the true object (a collision on a rig)
+    shaft = [t.get("shaft_clearance_m") for t in touches if t.get("shaft_clearance_m") is not None]
+    summary["shaft_collisions"] = sum(c < 0 for c in shaft) if shaft else None
     for level in IOU_LEVELS:
         summary[f"travel_to_iou_reachable_{level:.2f}_m"] = first_reaching(touches, level, "travel_m", "iou_reachable")
         summary[f"time_to_iou_reachable_{level:.2f}_s"] = first_reaching(touches, level, "time_s", "iou_reachable")

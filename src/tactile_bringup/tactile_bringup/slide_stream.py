@@ -33,7 +33,7 @@ class GraphSlide:
     """A slide of a graph run: its contacts (CONTACT_DTYPE records, stamp order: the approach's
     contact first), their stamps (ns), the slid length (m) and why it stopped.
 
-    ``points_xyz`` / ``n_contacts`` are the slide's own contacts (after the approach's), as
+    ``points_xyz`` / ``normals_xyz`` / ``n_contacts`` are the slide's own contacts (after the approach's), as
     :class:`tactile_sim.slide.SlideResult` has them offline.
     """
 
@@ -45,6 +45,11 @@ class GraphSlide:
     @property
     def points_xyz(self) -> np.ndarray:
         rows = [[o["x"], o["y"], o["z"]] for o in self.observations[1:]]
+        return np.asarray(rows, dtype=float).reshape(-1, 3)
+
+    @property
+    def normals_xyz(self) -> np.ndarray:
+        rows = [[o["normal_x"], o["normal_y"], o["normal_z"]] for o in self.observations[1:]]
         return np.asarray(rows, dtype=float).reshape(-1, 3)
 
     @property
