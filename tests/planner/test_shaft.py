@@ -149,3 +149,11 @@ def test_the_rod_beside_the_deck_clears_it_by_its_distance_and_under_it_not_at_a
     assert graph.rod_clearance_m(tip - [0.04, 0, 0], 0.01)[0] < -0.005  # under the deck: the rod is in it
     off = build_free_graph(mushroom_lattice(), 0.015, shell_m=0.03, min_z_m=0.015)
     assert np.isinf(off.rod_clearance_m(tip, 0.01)).all()  # no rod modelled
+
+
+def test_no_candidate_left_for_the_rod_check_is_a_plain_all_unreachable():
+    m = mushroom_map(np.array([[0.50, 0.03, 0.12]]), np.array([[0, 0, 1.0]]))
+    planner = TouchPlanner.from_params({"mode": "3d", "min_normal_z": 1.0, **SHAFT}, seed=0)  # all face "down"
+    res = planner.plan(m, np.array([0.62, 0.0, 0.16]))
+    assert res.status == "all_unreachable" and "facing down" in res.message
+    assert not planner.last_why["the finger's shaft would enter the estimate"].any()

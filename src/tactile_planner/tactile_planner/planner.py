@@ -457,7 +457,8 @@ class TouchPlanner:
             seg = pretouch[:, None, :] + t * (target + geometry.tip_radius_m * normal - pretouch)[:, None, :]
             ask = valid & ~hard  # the others are out already
             blocked = np.zeros(m, bool)
-            blocked[ask] = ~shaft_ok(seg[ask].reshape(-1, 3)).reshape(int(ask.sum()), -1).all(axis=1)
+            if ask.any():
+                blocked[ask] = ~shaft_ok(seg[ask].reshape(-1, 3)).reshape(seg[ask].shape[:2]).all(axis=1)
             why["the finger's shaft would enter the estimate"] = blocked
             hard |= blocked
             excluded |= blocked
