@@ -152,8 +152,9 @@ def test_the_rod_beside_the_deck_clears_it_by_its_distance_and_under_it_not_at_a
 
 
 def test_no_candidate_left_for_the_rod_check_is_a_plain_all_unreachable():
-    m = mushroom_map(np.array([[0.50, 0.03, 0.12]]), np.array([[0, 0, 1.0]]))
-    planner = TouchPlanner.from_params({"mode": "3d", "min_normal_z": 1.0, **SHAFT}, seed=0)  # all face "down"
+    m = mushroom_map(np.array([[0.56, 0.0, 0.11]]), np.array([[1.0, 0, 0]]))
+    planner = TouchPlanner.from_params({"mode": "3d", "min_normal_z": 1.0, "search_quantile": 0.0,
+                                        "support_gap_m": 0.0, **SHAFT}, seed=0)  # every normal "faces down"
     res = planner.plan(m, np.array([0.62, 0.0, 0.16]))
     assert res.status == "all_unreachable" and "facing down" in res.message
     assert not planner.last_why["the finger's shaft would enter the estimate"].any()
