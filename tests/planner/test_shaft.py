@@ -158,3 +158,21 @@ def test_no_candidate_left_for_the_rod_check_is_a_plain_all_unreachable():
     res = planner.plan(m, np.array([0.62, 0.0, 0.16]))
     assert res.status == "all_unreachable" and "facing down" in res.message
     assert not planner.last_why["the finger's shaft would enter the estimate"].any()
+
+
+def _passes_under_the_deck(path_xyz: np.ndarray) -> bool:
+    seg = np.vstack([a + np.linspace(0, 1, 20)[:, None] * (b - a) for a, b in zip(path_xyz[:-1], path_xyz[1:])])
+    return bool(np.any((np.abs(seg[:, 0] - 0.5) < 0.065) & (np.abs(seg[:, 1]) < 0.065) & (seg[:, 2] < 0.10)))
+
+
+def test_a_path_to_the_far_side_goes_over_the_deck_not_under_it():
+    """From low beside the deck to its far side wall the shortest tip path runs under the deck (the rod
+    through it); with the rod considered the path climbs over it."""
+    m = mushroom_map(np.array([[0.44, 0.0, 0.11]]), np.array([[-1.0, 0, 0]]))
+    tip = np.array([0.58, 0.0, 0.04])
+    params = {"mode": "3d", "strategy": "uncertainty", "support_gap_m": 0.0, **SHAFT}
+    tip_only = TouchPlanner.from_params({**params, "shaft_clear": False}, seed=0).plan(m, tip)
+    with_rod = TouchPlanner.from_params(params, seed=0).plan(m, tip)
+    assert tip_only.ok and _passes_under_the_deck(tip_only.path_xyz)  # what the rod check prevents
+    assert with_rod.ok and not _passes_under_the_deck(with_rod.path_xyz)
+    assert with_rod.path_length_m > tip_only.path_length_m
