@@ -27,6 +27,8 @@ from typing import Optional
 
 import numpy as np
 
+from tactile_common.touch_geometry import rod_points
+from tactile_driver.trajectory import densify
 from tactile_sim import metrics
 from tactile_sim.objects import SDFObject, make_object
 
@@ -83,13 +85,8 @@ class Evaluator:
         P = P[np.isfinite(P).all(axis=1)]
         if self.obj.dim != 3 or not len(P) or self.shaft_length_m <= 0:
             return None
-        seg = [P[:1]]
-        for a, b in zip(P[:-1], P[1:]):
-            n = max(int(np.ceil(np.linalg.norm(b - a) / step_m)), 1)
-            seg.append(a + np.linspace(0.0, 1.0, n + 1)[1:, None] * (b - a))
-        tips = np.vstack(seg)
-        up = self.tip_radius_m + np.arange(0.0, self.shaft_length_m - self.tip_radius_m + 1e-12, step_m)
-        rod = tips[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+        tips = densify(P, step_m)
+        rod = rod_points(tips, self.tip_radius_m, self.shaft_length_m, step_m)
         return float(np.min(self.obj.sdf(rod.reshape(-1, 3)))) - self.shaft_radius_m
 
     def surface_error_m(self, estimator) -> Optional[float]:

@@ -16,6 +16,7 @@ import numpy as np
 
 from tactile_common.fields import LABEL_CONTACT, LABEL_FREE_SPACE
 from tactile_common.rotations import quaternion_x_axis, xyzw
+from tactile_common.touch_geometry import back_off_target
 
 from . import plots
 from .cores import make_estimator
@@ -69,14 +70,13 @@ def _tip_track(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide
     the approach began; a miss: the probe's end) and a slide's contacts' tip centres."""
     rows = [np.asarray(path, dtype=float).reshape(-1, 3)] if path else []
     point = np.asarray(point_xyz, dtype=float).reshape(3)
+    end = None
     if contact:
         n = np.asarray([np.nan] * 3 if normal_xyz is None else normal_xyz, dtype=float).reshape(3)
-        if not (np.isfinite(n).all() and np.linalg.norm(n) > 0) and rows and len(rows[0]):
-            n = rows[0][-1] - point
-        norm = float(np.linalg.norm(n))
-        rows.append((point + tip_radius_m * n / norm)[None] if np.isfinite(norm) and norm > 0 else point[None])
-    else:
-        rows.append(point[None])
+        towards = point + n if np.isfinite(n).all() and np.linalg.norm(n) > 0 else \
+            (rows[0][-1] if rows and len(rows[0]) else point)
+        end = back_off_target(point, towards, tip_radius_m)
+    rows.append((point if end is None else end)[None])
     if slide is not None and slide.n_contacts:
         n = slide.normals_xyz
         norm = np.linalg.norm(n, axis=1, keepdims=True)

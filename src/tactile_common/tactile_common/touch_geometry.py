@@ -125,3 +125,11 @@ def polyline_length_m(points_xyz: np.ndarray) -> float:
     if len(points_xyz) < 2:
         return 0.0
     return float(np.linalg.norm(np.diff(points_xyz, axis=0), axis=1).sum())
+
+
+def rod_points(tip_xyz: np.ndarray, start_m: float, length_m: float, step_m: float) -> np.ndarray:
+    """(M, K, 3) points on the finger's rod above (M, 3) tip centres, world frame: the vertical axis from
+    ``start_m`` above the centre (the tip's top: its radius) up to ``length_m`` (the flange), every ``step_m``."""
+    up = start_m + np.arange(0.0, max(length_m - start_m, 0.0) + 1e-12, step_m)
+    tips = np.asarray(tip_xyz, dtype=float).reshape(-1, 3)
+    return tips[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])

@@ -56,6 +56,8 @@ from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial import cKDTree
 from scipy.special import ndtr
 
+from tactile_common.touch_geometry import rod_points
+
 from .maps import MapLattice
 
 
@@ -98,11 +100,10 @@ class FreeSpaceGraph:
         p = np.asarray(p_xyz, float).reshape(-1, 3)
         if self.shaft_field_m is None:
             return np.full(len(p), np.inf)
-        up = start_m + np.arange(0.0, max(self.shaft_length_m - start_m, 0.0) + 1e-12, step_m)
-        rod = p[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+        rod = rod_points(p, start_m, self.shaft_length_m, step_m)
         interp = RegularGridInterpolator(self.lattice.axes, self.shaft_field_m, bounds_error=False,
                                          fill_value=np.inf)
-        return interp(rod.reshape(-1, 3)).reshape(len(p), len(up)).min(axis=1)
+        return interp(rod.reshape(-1, 3)).reshape(rod.shape[:2]).min(axis=1)
 
     @property
     def n_nodes(self) -> int:
