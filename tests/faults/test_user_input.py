@@ -259,13 +259,11 @@ def test_set_parameters_on_a_running_node_is_checked(ros_graph, tmp_path):
     _bag_with_one_topic(bag)
     player = ros_graph.start("player", ["player", "--ros-args", "-p", f"bag:={bag}",
                                         "-p", "wait_for_subscribers_s:=300.0"])
-    client = ros_graph.node.create_client(SetParameters, "/player/set_parameters")
-    ros_graph.wait_for(client.service_is_ready, timeout_s=30, what="the player's parameter service")
 
     def set_one(name, value):
-        future = client.call_async(SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()]))
-        ros_graph.wait_for(future.done, timeout_s=20, what=f"the answer to setting {name}")
-        return future.result().results[0]
+        request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+        return ros_graph.call(SetParameters, "/player/set_parameters", request, timeout_s=30,
+                              what=f"the answer to setting {name}").results[0]
 
     r = set_one("linger_s", -1.0)
     assert not r.successful and "linger_s" in r.reason and "-1.0" in r.reason  # out of range, with the value

@@ -87,12 +87,8 @@ def test_node_maps_contacts(ros_graph):
     ros_graph.wait_for(lambda: len(maps) > n_before, 20, "the map of the late observation")
     assert maps[-1].header.stamp.sec == 12
 
-    client = ros_graph.node.create_client(Trigger, "/gpis_estimator/reset")
-    ros_graph.wait_for(client.service_is_ready, 20, "the reset service")
     n_before = len(maps)
-    future = client.call_async(Trigger.Request())
-    ros_graph.wait_for(future.done, 20, "the reset reply")
-    assert future.result().success
+    assert ros_graph.call(Trigger, "/gpis_estimator/reset", Trigger.Request(), 20, "the reset reply").success
     ros_graph.wait_for(lambda: len(maps) > n_before, 20, "the map after reset")
     after = from_pointcloud2(maps[-1])
     np.testing.assert_allclose(after["variance"][: 64 * 64], prior_arr["variance"][: 64 * 64])

@@ -230,6 +230,32 @@ class RosGraph:
                 raise GraphTestError(f"timed out after {timeout_s:.0f} s waiting for {what}\n{self.logs()}")
             self.spin_once(0.05)
 
+    def call(self, srv_type: Any, service: str, request: Any, timeout_s: float, what: str,
+             answer_within_s: float = 5.0) -> Any:
+        """Call ``service`` and return its response; resend if no answer came in ``answer_within_s``.
+
+        Only for idempotent requests. ``service_is_ready`` sees the server's request reader; the
+        server's response writer may not have matched this client's response reader yet, and
+        Fast DDS then drops the response after 100 ms ("client will not receive response",
+        ros2/rmw_fastrtps#467). A resend after matching is answered.
+        """
+        client = self.node.create_client(srv_type, service)
+        try:
+            deadline = time.monotonic() + timeout_s
+            self.wait_for(client.service_is_ready, timeout_s, f"the service {service}")
+            while True:
+                future = client.call_async(request)
+                try_s = min(answer_within_s, max(0.1, deadline - time.monotonic()))
+                try:
+                    self.wait_for(future.done, try_s, what)
+                    return future.result()
+                except GraphTestError:
+                    client.remove_pending_request(future)
+                    if time.monotonic() >= deadline or not all(p.alive() for p in self.procs.values()):
+                        raise
+        finally:
+            self.node.destroy_client(client)
+
     def observe(self, duration_s: float, what: str) -> None:
         """Spin for ``duration_s`` while something must *not* happen (no trajectory in a dry run).
 
