@@ -127,9 +127,15 @@ def polyline_length_m(points_xyz: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points_xyz, axis=0), axis=1).sum())
 
 
-def rod_points(tip_xyz: np.ndarray, start_m: float, length_m: float, step_m: float) -> np.ndarray:
-    """(M, K, 3) points on the finger's rod above (M, 3) tip centres, world frame: the vertical axis from
-    ``start_m`` above the centre (the tip's top: its radius) up to ``length_m`` (the flange), every ``step_m``."""
+def rod_points(tip_xyz: np.ndarray, start_m: float, length_m: float, step_m: float,
+               axis_xyz: Optional[np.ndarray] = None) -> np.ndarray:
+    """(M, K, 3) points on the finger's rod above (M, 3) tip centres, world frame: along the finger axis
+    (unit, from the tip towards the flange; ``axis_xyz`` (3,) or one per tip (M, 3); None = vertical, +z)
+    from ``start_m`` past the centre (the tip's top: its radius) up to ``length_m`` (the flange), every
+    ``step_m``."""
     up = start_m + np.arange(0.0, max(length_m - start_m, 0.0) + 1e-12, step_m)
     tips = np.asarray(tip_xyz, dtype=float).reshape(-1, 3)
-    return tips[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+    if axis_xyz is None:
+        return tips[:, None, :] + up[None, :, None] * np.array([0.0, 0.0, 1.0])
+    axis = np.broadcast_to(np.asarray(axis_xyz, dtype=float).reshape(-1, 3), tips.shape)
+    return tips[:, None, :] + up[None, :, None] * axis[:, None, :]

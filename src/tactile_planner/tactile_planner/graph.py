@@ -93,17 +93,26 @@ class FreeSpaceGraph:
     shaft_field_m: np.ndarray | None = None
     shaft_length_m: float = 0.0
 
-    def rod_clearance_m(self, p_xyz: np.ndarray, start_m: float, step_m: float = 0.004) -> np.ndarray:
-        """The estimated clearance of a vertical rod above each (M, 3) tip centre: the minimum of the
-        clearance c (multilinear) at z + ``start_m`` … z + ``shaft_length_m``, every ``step_m`` (+inf
-        without a shaft; above the lattice nothing limits)."""
+    def rod_clearance_m(self, p_xyz: np.ndarray, start_m: float, step_m: float = 0.004,
+                        axis_xyz: np.ndarray | None = None, length_m: float | None = None) -> np.ndarray:
+        """The estimated clearance of the rod above each (M, 3) tip centre: the minimum of the clearance c
+        (multilinear) along the finger axis (``axis_xyz``: (3,) or (M, 3) unit; None = vertical) from
+        ``start_m`` to ``length_m`` (default ``shaft_length_m``) past the centre, every ``step_m`` (+inf
+        without a shaft; outside the lattice nothing limits)."""
         p = np.asarray(p_xyz, float).reshape(-1, 3)
         if self.shaft_field_m is None:
             return np.full(len(p), np.inf)
-        rod = rod_points(p, start_m, self.shaft_length_m, step_m)
+        rod = rod_points(p, start_m, self.shaft_length_m if length_m is None else length_m, step_m, axis_xyz)
+        return self.shaft_field_at(rod.reshape(-1, 3)).reshape(rod.shape[:2]).min(axis=1)
+
+    def shaft_field_at(self, p_xyz: np.ndarray) -> np.ndarray:
+        """The rod's clearance field (multilinear) at (M, 3) points: +inf outside the lattice or without a shaft."""
+        p = np.asarray(p_xyz, float).reshape(-1, 3)
+        if self.shaft_field_m is None:
+            return np.full(len(p), np.inf)
         interp = RegularGridInterpolator(self.lattice.axes, self.shaft_field_m, bounds_error=False,
                                          fill_value=np.inf)
-        return interp(rod.reshape(-1, 3)).reshape(rod.shape[:2]).min(axis=1)
+        return interp(p)
 
     @property
     def n_nodes(self) -> int:

@@ -28,6 +28,7 @@ from .pocket import closer_pretouch, pocket_entries
 from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
+from .tilt import TiltedEntries, TiltSettings, tilted_entries
 from .strategies import INFO_TRAVEL_PER, SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TRAVEL_LENGTHS, TravelError, make_backend
 
@@ -101,6 +102,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                        "clearance (margin_m − tip_radius_m) from the estimated surface", {"gt": 0.0}),
     "shaft_gap_m": (0.002, "3D: on an approach or a slide, where the tip meets the surface, the rod keeps its "
                     "radius plus this from the estimated surface", {"ge": 0.0}),
+    "tilt_max_rad": (0.0, "3D pokes: a candidate the vertical finger cannot touch (its rod would enter the estimate, "
+                     "or the surface faces down) may be touched with the finger tilted up to this angle from "
+                     "vertical, inserted along its own axis (tactile_planner.tilt; docs/planner.md, \"The tilted "
+                     "finger\"; 0 = off: the finger stays vertical)", {"ge": 0.0, "le": 1.5708}),
+    "tilt_insert_max_m": (0.06, "3D: the longest straight insertion of a tilted finger, from its entry point "
+                          "(where it turns) to the pre-touch point", {"gt": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -138,6 +145,11 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
 }
 
 
+#: The reason a candidate is excluded when its approach would put the vertical rod into the estimate.
+SHAFT_REASON = "the finger's shaft would enter the estimate"
+_EZ = np.array([0.0, 0.0, 1.0])
+
+
 @dataclass
 class PlanResult:
     """Outcome of one decision (world frame, metres; index −1 and NaNs when no goal)."""
@@ -163,6 +175,15 @@ class PlanResult:
     backend_info: dict = field(default_factory=dict)
     slide_direction_xyz: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))  # touch 'slide': unit start tangent
     slide_length_m: float = float("nan")  # touch 'slide': planned length along the surface
+    # the finger axis (unit, tip → flange) at each path point; empty: vertical all the way. A tilted touch
+    # ends its path with the entry point twice (+z, then the axis: the finger turns there) and the
+    # pre-touch point (tactile_planner.tilt).
+    path_axes_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def finger_axis_xyz(self) -> np.ndarray:
+        """The finger axis of the approach (unit, world): +z unless the path ends tilted."""
+        return self.path_axes_xyz[-1].copy() if len(self.path_axes_xyz) else _EZ.copy()
 
     @property
     def ok(self) -> bool:
@@ -311,6 +332,31 @@ class TouchPlanner:
         need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
         return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
 
+    def _tilted_entries(self, graph, why: dict, valid: np.ndarray, hard: np.ndarray, pretouch: np.ndarray,
+                        target: np.ndarray, normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
+        """Tilted entries (tactile_planner.tilt) for the candidates only the vertical finger rules out (its rod
+        or a surface facing down); None when the tilt is off (``tilt_max_rad`` 0, 2D, slides, no shaft)."""
+        p = self.params
+        tilt = float(p["tilt_max_rad"])
+        if tilt <= 0 or graph.shaft_field_m is None or p["touch"] != "poke":
+            return None
+        finger_only = np.zeros(len(valid), bool)
+        for k in (SHAFT_REASON, "facing down"):
+            finger_only |= why.get(k, False)
+        other, _ = _combine({k: v for k, v in why.items() if k not in (SHAFT_REASON, "facing down")},
+                            "already targeted", len(valid))
+        ask = valid & finger_only & ~other
+        m = len(valid)
+        out = TiltedEntries(np.full((m, 3), np.nan), np.full((m, 3), np.nan), np.full(m, np.nan))
+        if ask.any():
+            skin = max(float(p["margin_m"]) - tip_radius_m, 0.0)
+            got = tilted_entries(graph, pretouch[ask], target[ask] + tip_radius_m * normal[ask], normal[ask],
+                                 tip_radius_m, float(p["shaft_radius_m"]) + float(p["shaft_gap_m"]),
+                                 float(p["shaft_radius_m"]) + skin, tilt,
+                                 replace(TiltSettings(), insert_max_m=float(p["tilt_insert_max_m"])))
+            out.axis_xyz[ask], out.entry_xyz[ask], out.insert_m[ask] = got.axis_xyz, got.entry_xyz, got.insert_m
+        return out
+
     def _min_tip_z_m(self, dim: int) -> float:
         """The lowest tip-centre height a touch may reach: ``min_tip_z_m`` in 3D, none in 2D (a section)."""
         return float(self.params["min_tip_z_m"]) if dim == 3 else -np.inf
@@ -422,16 +468,10 @@ class TouchPlanner:
             # lowest tip height, the floor of the arm's safety box: the commander refuses the touch
             probe_z = pretouch[:, 2] - geometry.min_approach_m * normal[:, 2]
             why["touched below the lowest tip height"] = probe_z < float(p["min_tip_z_m"])
-        excluded = np.zeros(m, bool)
-        for mask in why.values():
-            excluded |= mask
         # "already targeted" is a preference, not a wall: when only earlier targets are left
         # they are revisited rather than the run stopped with unconfirmed surface in reach
         revisit = why.get("already targeted", np.zeros(m, bool))
-        hard = np.zeros(m, bool)
-        for k, mask in why.items():
-            if k != "already targeted":
-                hard |= mask
+        hard, excluded = _combine(why, "already targeted", m)
 
         p_in = float(p["p_inside_max"])
         finger_m = float(p["tip_radius_m"]) + float(p["pocket_gap_m"])
@@ -459,14 +499,23 @@ class TouchPlanner:
             blocked = np.zeros(m, bool)
             if ask.any():
                 blocked[ask] = ~shaft_ok(seg[ask].reshape(-1, 3)).reshape(seg[ask].shape[:2]).all(axis=1)
-            why["the finger's shaft would enter the estimate"] = blocked
+            why[SHAFT_REASON] = blocked
             hard |= blocked
             excluded |= blocked
+        tilted = self._tilted_entries(graph, why, valid, hard, pretouch, target, normal, geometry.tip_radius_m)
+        if tilted is not None and tilted.ok.any():  # these are touched with the finger tilted
+            for k in (SHAFT_REASON, "facing down"):
+                if k in why:
+                    why[k] = why[k] & ~tilted.ok
+            hard, excluded = _combine(why, "already targeted")
+        travel_end = pretouch if tilted is None else np.where(tilted.ok[:, None], tilted.entry_xyz, pretouch)
         start = graph.nearest_node(tip)
         # outside the band/shell the tip joins the graph by a straight segment; it is
         # "snapped" when it is inside the margin or that segment is not free
         snapped = not bool(graph.segments_free(tip[None], graph.xyz[start][None])[0])
-        term_node, term_len = graph.attach(pretouch, int(p["attach_reach"]))
+        term_node, term_len = graph.attach(travel_end, int(p["attach_reach"]))
+        if tilted is not None:  # the insertion and the way back out are part of the touch's travel
+            term_len = term_len + np.where(tilted.ok, 2.0 * tilted.insert_m, 0.0)
         _, comp = csg.connected_components(graph.length_m, directed=False)
         why["invalid"] = ~valid
         why["no free pre-touch point"] = term_node < 0
@@ -476,7 +525,7 @@ class TouchPlanner:
         if reachable.any():
             node = np.maximum(term_node, 0)  # from a narrow node the finger's room will do
             why["last segment not free"] = reachable & ~graph.segments_free(
-                graph.xyz[node], pretouch, clearance_m=graph.node_clearance_m(node))
+                graph.xyz[node], travel_end, clearance_m=graph.node_clearance_m(node))
             reachable &= ~why["last segment not free"]
         # a pre-touch point in a pocket of the estimate: entered along its approach axis (tactile_planner.pocket)
         entry = np.full((m, 3), np.nan)
@@ -541,10 +590,18 @@ class TouchPlanner:
                 idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)
         via = entry[idx][None] if np.isfinite(entry[idx]).all() else np.zeros((0, 3))  # a pocket's entry point
-        pts = np.vstack([tip[None], graph.xyz[nodes], via, pretouch[idx][None]])
+        pts = np.vstack([tip[None], graph.xyz[nodes], via, travel_end[idx][None]])
         if bool(p["smooth_path"]):
             pts = shortcut(graph, pts)
         pts = _dedupe(pts)
+        axes = np.zeros((0, 3))
+        tilt_msg = ""
+        if tilted is not None and tilted.ok[idx]:  # at the entry: turn the finger, then insert it (tactile_planner.tilt)
+            a = tilted.axis_xyz[idx]
+            axes = np.vstack([np.tile(_EZ, (len(pts), 1)), a, a])
+            pts = np.vstack([pts, travel_end[idx][None], pretouch[idx][None]])
+            tilt_msg = (f"; finger tilted {np.degrees(np.arccos(np.clip(a[2], -1.0, 1.0))):.0f} deg, "
+                        f"inserted {tilted.insert_m[idx]:.3f} m")
         n_unreach = int(m - excluded.sum() - (reachable).sum())
         info = dict(getattr(self.backend, "last_info", {}))
         extra = ""
@@ -556,13 +613,25 @@ class TouchPlanner:
         return PlanResult(
             "ok",
             f"{searching}candidate {idx} of {m} ({p['strategy']}, {self.backend.name}); "
-            f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}{extra}",
+            f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}"
+            f"{tilt_msg}{extra}",
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
-            path_xyz=pts, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
+            path_xyz=pts, path_axes_xyz=axes, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
             n_unreachable=n_unreach, backend_info=info, **base,
             **({} if slide is None or slide.index < 0 else
                dict(slide_direction_xyz=slide.direction_xyz, slide_length_m=slide.length_m)),
         )
+
+
+def _combine(why: dict, soft: str, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(hard, excluded) over the candidates: any reason but ``soft``, any reason at all."""
+    n = m if m is not None else len(next(iter(why.values())))
+    hard, excluded = np.zeros(n, bool), np.zeros(n, bool)
+    for k, mask in why.items():
+        excluded |= mask
+        if k != soft:
+            hard |= mask
+    return hard, excluded
 
 
 def _dedupe(pts: np.ndarray) -> np.ndarray:
