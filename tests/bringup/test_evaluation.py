@@ -82,7 +82,7 @@ def test_the_summary_counts_the_touches_whose_rod_entered_the_object():
 def test_the_tip_track_of_a_touch_ends_where_the_tip_centre_met_the_surface():
     from types import SimpleNamespace
 
-    from tactile_bringup.progress import _tip_track
+    from tactile_bringup.progress import _tip_points as _tip_track
 
     path = [[0.40, 0.0, 0.10], [0.50, 0.0, 0.10]]
     c = np.array([0.50, 0.0, 0.08])
@@ -96,3 +96,50 @@ def test_the_tip_track_of_a_touch_ends_where_the_tip_centre_met_the_surface():
     got = _tip_track(path, True, c, [0.0, 0.0, 1.0], slide, 0.01)
     np.testing.assert_allclose(got[-1], [0.51, 0.01, 0.08])  # the slide's contact with a normal, not the other
     assert len(got) == 4
+
+
+def test_a_tilted_rod_is_checked_along_its_axis_and_while_it_turns():
+    from tactile_bringup.evaluation import Evaluator
+    from tactile_bringup.experiment import Experiment
+
+    ev = Evaluator(Experiment(mode="3d", object_name="sphere", touches=1, seed=0))
+    R, rs, L, r = 0.05, ev.shaft_radius_m, ev.shaft_length_m, ev.tip_radius_m
+    c = np.array([0.5, 0.0, 0.05])  # the default sphere (centre, radius) the other rod test uses
+    tip = c + np.array([0.0, 0.0, -0.07])  # 2 cm under the ball: a vertical rod goes through it
+    assert ev.shaft_clearance_m(tip[None]) == pytest.approx(-R - rs, abs=1e-5)
+    # horizontal along +x: the rod's nearest point to the centre is its start (r past the tip): closed form
+    flat = np.array([1.0, 0.0, 0.0])
+    want = np.hypot(0.07, r) - R - rs
+    assert ev.shaft_clearance_m(tip[None], axes_xyz=flat[None]) == pytest.approx(want, abs=2e-4)
+    # turning in place from horizontal to vertical sweeps the rod through the ball
+    assert ev.shaft_clearance_m(np.vstack([tip, tip]), axes_xyz=np.vstack([flat, [0, 0, 1.0]])) < -R / 2
+    # moving along its own axis (an insertion) keeps the clearance of the nearest point on the line
+    along = np.vstack([tip + 0.05 * flat, tip])
+    assert ev.shaft_clearance_m(along, axes_xyz=np.vstack([flat, flat])) == pytest.approx(want, abs=2e-4)
+    assert L > 0.07
+
+
+def test_densified_axes_turn_on_the_great_circle_and_the_rods_end_moves_at_most_a_step():
+    from tactile_common.touch_geometry import densify_axes
+
+    tips = np.array([[0.5, 0.0, 0.1], [0.5, 0.0, 0.1], [0.55, 0.0, 0.1]])
+    axes = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [0.0, -1.0, 0.0]])
+    P, A = densify_axes(tips, axes, 0.002, 0.16)
+    np.testing.assert_allclose(np.linalg.norm(A, axis=1), 1.0)
+    assert np.abs(A[:, 0]).max() < 1e-12  # the y-z great circle
+    ends = P + 0.16 * A
+    assert np.linalg.norm(np.diff(ends, axis=0), axis=1).max() <= 0.002 * 1.42  # nlerp's uneven steps ≤ √2
+    assert np.linalg.norm(np.diff(P, axis=0), axis=1).max() <= 0.002 + 1e-12
+    np.testing.assert_allclose(P[[0, -1]], tips[[0, -1]])
+    np.testing.assert_allclose(A[[0, -1]], axes[[0, -1]])
+
+
+def test_the_tip_track_carries_the_finger_axis_to_the_approachs_end():
+    from tactile_bringup.progress import _tip_track
+
+    path = [[0.40, 0.0, 0.10], [0.40, 0.0, 0.10], [0.45, 0.0, 0.10]]
+    axes = [[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
+    track, A = _tip_track(path, True, np.array([0.50, 0.0, 0.10]), [-1.0, 0.0, 0.0], None, 0.01, axes)
+    assert len(track) == len(A) == 4
+    np.testing.assert_allclose(A[-1], [-1.0, 0.0, 0.0])
+    assert _tip_track(path, True, np.array([0.50, 0.0, 0.10]), [-1.0, 0.0, 0.0], None, 0.01)[1] is None

@@ -27,7 +27,7 @@ from typing import Optional
 
 import numpy as np
 
-from tactile_common.touch_geometry import rod_points
+from tactile_common.touch_geometry import densify_axes, rod_points
 from tactile_driver.trajectory import densify
 from tactile_sim import metrics
 from tactile_sim.objects import SDFObject, make_object
@@ -76,17 +76,25 @@ class Evaluator:
         return metrics.reachable_iou(lambda points: field < 0, self.obj, self.points, self.tip_radius_m,
                                      self.min_tip_z_m)
 
-    def shaft_clearance_m(self, tip_path_xyz: np.ndarray, step_m: float = 0.002) -> Optional[float]:
+    def shaft_clearance_m(self, tip_path_xyz: np.ndarray, step_m: float = 0.002,
+                          axes_xyz: Optional[np.ndarray] = None) -> Optional[float]:
         """3D: min over the polyline the tip centre followed, (K, 3) world frame sampled every ``step_m``,
-        of the true sdf along the vertical rod above the tip (from its top, r above the centre, up
-        ``shaft_length_m``, every ``step_m``) minus ``shaft_radius_m`` (m; < 0: the rod entered the
-        object). None in 2D (the rod stands beside a prism's walls) or for an empty path."""
+        of the true sdf along the rod above the tip (from its top, r past the centre, ``shaft_length_m``
+        along the finger axis: vertical, or ``axes_xyz`` (K, 3) at the polyline's points, turning on each
+        segment, sampled so that its far end also moves ≤ ``step_m``; every ``step_m``) minus
+        ``shaft_radius_m`` (m; < 0: the rod entered the object). None in 2D (the rod stands beside a
+        prism's walls) or for an empty path."""
         P = np.asarray(tip_path_xyz, dtype=float).reshape(-1, 3)
-        P = P[np.isfinite(P).all(axis=1)]
+        ok = np.isfinite(P).all(axis=1)
+        P = P[ok]
         if self.obj.dim != 3 or not len(P) or self.shaft_length_m <= 0:
             return None
-        tips = densify(P, step_m)
-        rod = rod_points(tips, self.tip_radius_m, self.shaft_length_m, step_m)
+        if axes_xyz is None:
+            tips, axes = densify(P, step_m), None
+        else:
+            tips, axes = densify_axes(P, np.asarray(axes_xyz, dtype=float).reshape(-1, 3)[ok], step_m,
+                                      self.shaft_length_m)
+        rod = rod_points(tips, self.tip_radius_m, self.shaft_length_m, step_m, axes)
         return float(np.min(self.obj.sdf(rod.reshape(-1, 3)))) - self.shaft_radius_m
 
     def surface_error_m(self, estimator) -> Optional[float]:

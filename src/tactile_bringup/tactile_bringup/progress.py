@@ -64,10 +64,22 @@ def _path_record(path_xyz, followed_m: Optional[float]) -> Optional[list]:
     return np.round(P, 4).tolist()
 
 
-def _tip_track(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide, tip_radius_m: float) -> np.ndarray:
+def _tip_track(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide, tip_radius_m: float,
+               path_axes: Optional[list] = None) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """Where the tip centre went in one touch, (K, 3) world frame: the free-space path, the approach's
     end (the contact's tip centre: point + r·n, or without a normal r back towards the path's end, where
-    the approach began; a miss: the probe's end) and a slide's contacts' tip centres."""
+    the approach began; a miss: the probe's end) and a slide's contacts' tip centres; and the finger axis
+    at each of those points ((K, 3); None: vertical throughout), from ``path_axes`` (one per path point;
+    the approach keeps the path's last axis; a tilted finger does not slide)."""
+    track = _tip_points(path, contact, point_xyz, normal_xyz, slide, tip_radius_m)
+    if path_axes is None:
+        return track, None
+    A = np.asarray(path_axes, dtype=float).reshape(-1, 3)
+    return track, np.vstack([A, np.repeat(A[-1:], len(track) - len(A), axis=0)])
+
+
+def _tip_points(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide, tip_radius_m: float) -> np.ndarray:
+    """The tip centres of :func:`_tip_track`."""
     rows = [np.asarray(path, dtype=float).reshape(-1, 3)] if path else []
     point = np.asarray(point_xyz, dtype=float).reshape(3)
     end = None
@@ -88,7 +100,8 @@ def _tip_track(path: Optional[list], contact: bool, point_xyz, normal_xyz, slide
 def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, travel_m: float,
                  time_s: float, decision_ms: float, estimator, evaluator: Optional[Evaluator],
                  path_xyz=None, path_followed_m: Optional[float] = None, slide=None,
-                 stream: Optional[list] = None, contacts_used: Optional[int] = None) -> dict:
+                 stream: Optional[list] = None, contacts_used: Optional[int] = None,
+                 path_axes_xyz=None) -> dict:
     """The report entry of one touch, with metrics of the estimate after it.
 
     ``path_xyz`` (K, 3): the free-space path from the tip to the pre-touch point
@@ -100,11 +113,17 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
     slide's contacts streamed in (``{travel_m, time_s, iou, iou_reachable,
     contacts}``, cumulative over the run; :func:`tactile_bringup.slide_touch.observe_stream`);
     ``contacts_used``: how many of the slide's contacts the estimator took (the rest were thinned
-    as already known).
+    as already known). ``path_axes_xyz`` (K, 3): the finger axis at each path point of a tilted touch
+    (tactile_planner.tilt; None: vertical), recorded as ``path_axes`` for the points of ``path``.
     """
     cand = estimator.map_array()
     cand = cand[cand["kind"] == 1]
     path = _path_record(path_xyz, path_followed_m)
+    axes = None
+    if path is not None and path_axes_xyz is not None and len(path_axes_xyz):
+        axes = np.round(np.asarray(path_axes_xyz, dtype=float).reshape(-1, 3)[: len(path)], 4).tolist()
+    track, track_axes = _tip_track(path, contact, point_xyz, normal_xyz, slide,
+                                   evaluator.tip_radius_m if evaluator else 0.0, axes)
     return {
         "index": index,
         "target": _round(target_xyz),
@@ -120,8 +139,8 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "decision_ms": float(decision_ms),
         "max_surface_var_m2": float(cand["variance"].max()) if len(cand) else None,
         "path": path,
-        "shaft_clearance_m": evaluator.shaft_clearance_m(_tip_track(path, contact, point_xyz, normal_xyz, slide,
-                                                                     evaluator.tip_radius_m)) if evaluator else None,
+        "path_axes": axes,
+        "shaft_clearance_m": evaluator.shaft_clearance_m(track, axes_xyz=track_axes) if evaluator else None,
         "touch": "poke" if slide is None else "slide",
         "slide_m": None if slide is None else float(slide.slid_m),
         "slide_stop": None if slide is None else slide.stop.value,
