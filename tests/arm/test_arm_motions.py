@@ -1,15 +1,23 @@
 """The commander's plans without ROS (tactile_driver.arm_motions), against the forward kinematics.
 
 The back-off waypoint is judged from the plan's own tip polyline measured here
-(cumulative lengths); the joint move's end against the exact goal joints.
+(cumulative lengths); the joint move's end against the exact goal joints. A tilted finger
+(reorientation in place, an approach that holds the axis) against the full model's FK and
+scipy's spline of the trajectory.
 """
 
+import warnings
+
 import numpy as np
+import pinocchio as pin
 import pytest
+from scipy.interpolate import CubicHermiteSpline
 
 from tactile_driver.arm_motions import APPROACH_BOX_INSET_M, ArmMotions, path_point_before, timed_start_ns
 from tactile_driver.commander_api import CommanderConfig
+from tactile_driver.kinematics import default_urdf_path
 from tactile_driver.safety import OutsideWorkspace
+from tactile_driver.trajectory import TrajectoryError, plan_tip_path
 
 
 @pytest.fixture(scope="module")
@@ -116,3 +124,99 @@ def test_an_approach_from_a_pretouch_point_the_ik_put_a_hair_below_the_floor(mot
     assert np.all(motions.into_box(far) == far)
     with pytest.raises(OutsideWorkspace):
         motions.approach_depth_m(far, side, 0.04, 0.01)
+
+
+# -- a tilted finger ---------------------------------------------------------------------------------------
+OFFSET_M = 0.16  # CommanderConfig.tip_offset_m
+
+
+@pytest.fixture(scope="module")
+def full():
+    model = pin.buildModelFromUrdf(default_urdf_path())
+    return model, model.createData()
+
+
+@pytest.fixture(scope="module")
+def q_low(motions):
+    """Joints with the tip at (0.5, 0, 0.1), finger vertical."""
+    return motions.tip_path(np.array([[0.5, 0.0, 0.1]]), motions.home).positions_rad[-1]
+
+
+def _full_tip(full, q7):
+    """Tip centre and fingertip z-axis from the full model (link8 placement + OFFSET_M along its z)."""
+    model, data = full
+    q = np.zeros(model.nq)
+    q[:7] = q7
+    pin.framesForwardKinematics(model, data, q)
+    m = data.oMf[model.getFrameId("panda_link8")]
+    return m.translation + OFFSET_M * m.rotation[:, 2], -m.rotation[:, 2]
+
+
+def _axis(tilt_deg, azimuth_deg):
+    """Unit axis tilted ``tilt_deg`` from world +z towards azimuth ``azimuth_deg`` (from +x towards +y)."""
+    t, f = np.radians(tilt_deg), np.radians(azimuth_deg)
+    return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
+
+
+def _angle(u, v):
+    """Angle between two vectors (rad), from the normalised dot product."""
+    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def test_a_path_from_a_vertical_finger_is_planned_as_before(motions):
+    """tip_path without axes from a vertical start: plan_tip_path without axes, bit for bit."""
+    path = np.array([[0.45, -0.05, 0.25], [0.40, -0.10, 0.06], [0.52, 0.03, 0.06]])
+    traj = motions.tip_path(path, motions.home)
+    ref = plan_tip_path(motions.model, path, motions.home, motions.limits, motions.cfg.waypoint_step_m,
+                        motions.ik, motions.cfg.max_joint_step_rad)
+    assert np.array_equal(traj.positions_rad, ref.positions_rad) and np.array_equal(traj.times_s, ref.times_s)
+    assert "axes_xyz" not in traj.meta
+
+
+@pytest.mark.parametrize("tilt_deg, azimuth_deg", [(60, 90), (45, 225), (75, 315)])
+def test_a_rotation_in_place_keeps_the_tip_and_respects_the_joint_limits(motions, full, q_low, tilt_deg,
+                                                                           azimuth_deg):
+    axis = _axis(tilt_deg, azimuth_deg)
+    tip0 = _full_tip(full, q_low)[0]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no division by zero on a path without tip travel
+        traj = motions.reorient(q_low, axis)
+    fk = [_full_tip(full, q) for q in traj.positions_rad]
+    assert max(np.linalg.norm(t - tip0) for t, _ in fk) <= motions.ik.tol_m
+    assert _angle(fk[-1][1], axis) <= motions.ik.max_tilt_rad
+    assert _angle(fk[0][1], [0, 0, 1]) < 1e-3 and len(traj.times_s) >= np.radians(tilt_deg) / 0.05
+    # The executed spline (scipy): within the joint velocity and acceleration limits, the tip stays put.
+    lim = motions.limits
+    spline = CubicHermiteSpline(traj.times_s, traj.positions_rad, traj.velocities_rad_s)
+    t = np.linspace(0.0, traj.duration_s, 4000)
+    assert np.all(np.abs(spline(t, 1)) <= lim.velocity_rad_s * (1 + 1e-6))
+    assert np.all(np.abs(spline(t, 2)) <= lim.acceleration_rad_s2 * (1 + 1e-6))
+    assert max(np.linalg.norm(_full_tip(full, q)[0] - tip0) for q in spline(t[::40])) < 1e-3
+    # The joints set the time: no faster than the largest joint travel at its velocity limit.
+    travel = np.abs(np.diff(traj.positions_rad, axis=0)).sum(axis=0)
+    assert traj.duration_s >= np.max(travel / lim.velocity_rad_s)
+    assert np.all(np.diff(traj.times_s) > 0) and np.all(np.isfinite(traj.times_s))
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0], "up"])
+def test_a_bad_reorientation_axis_is_a_clear_error(motions, q_low, bad):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(TrajectoryError, match="finger ax"):
+            motions.reorient(q_low, bad)
+
+
+def test_an_approach_from_a_tilted_finger_keeps_its_axis(motions, full, q_low):
+    """tip_path without axes holds a tilted start's axis (a vertical start is planned vertical, as before)."""
+    q_tilted = motions.reorient(q_low, _axis(50, 90)).positions_rad[-1]
+    z0 = _full_tip(full, q_tilted)[1]
+    assert _angle(z0, [0, 0, 1]) > np.radians(40)
+    approach = motions.tip_path(np.array([[0.5, 0.0, 0.06]]), q_tilted, 0.02, 0.005)
+    fk = [_full_tip(full, q) for q in approach.positions_rad]
+    assert max(_angle(z, z0) for _, z in fk) <= motions.ik.max_tilt_rad
+    assert np.linalg.norm(fk[-1][0] - [0.5, 0.0, 0.06]) <= motions.ik.tol_m
+    np.testing.assert_allclose(approach.meta["axes_xyz"], np.repeat(z0[None], len(fk), axis=0), atol=1e-12)
+    # A given axis wins: back to vertical along the same approach.
+    up = motions.tip_path(np.array([[0.5, 0.0, 0.06]]), q_tilted, 0.02, 0.005, axes_xyz=[[0.0, 0.0, 1.0]])
+    assert _angle(_full_tip(full, up.positions_rad[-1])[1], [0, 0, 1]) <= motions.ik.max_tilt_rad

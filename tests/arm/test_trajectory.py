@@ -1,11 +1,19 @@
-"""Generated trajectories respect position, velocity, acceleration limits and follow the tip path."""
+"""Generated trajectories respect position, velocity, acceleration limits and follow the tip path.
+
+With finger axes: great-circle interpolation against closed-form angles, rotations in place (no tip travel)
+timed by the joint limits, waypoint axes against the full model's FK."""
+
+import warnings
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
-from tactile_driver.kinematics import ArmModel
-from tactile_driver.trajectory import MotionLimits, PathNotFeasible, densify, plan_tip_path, sample_hermite
+from tactile_driver.ik import IKSettings, solve_ik
+from tactile_driver.kinematics import ArmModel, default_urdf_path
+from tactile_driver.trajectory import (MotionLimits, PathNotFeasible, TrajectoryError, densify, densify_with_axes,
+                                       ik_path, plan_tip_path, sample_hermite, slerp_axes, time_parameterize)
 
 Q_HOME = np.array([0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854])  # tip at (0.5, 0, 0.35)
 
@@ -88,3 +96,151 @@ def test_densify_counts_steps_robustly_at_whole_multiples():
     b = densify(np.array([[0.0, 0.0, 0.0], [0.04 + 1e-14, 0.0, 0.0]]), 0.005)
     assert len(a) == len(b) == 9
     assert np.max(np.diff(a[:, 0])) <= 0.005 + 1e-12
+
+
+# -- finger axes ---------------------------------------------------------------------------------------------
+OFFSET_M = 0.16  # ArmModel's default tip offset
+
+
+@pytest.fixture(scope="module")
+def full():
+    model = pin.buildModelFromUrdf(default_urdf_path())
+    return model, model.createData()
+
+
+def _full_tip(full, q7):
+    """Tip centre and fingertip z-axis from the full model (link8 placement + OFFSET_M along its z)."""
+    model, data = full
+    q = np.zeros(model.nq)
+    q[:7] = q7
+    pin.framesForwardKinematics(model, data, q)
+    m = data.oMf[model.getFrameId("panda_link8")]
+    return m.translation + OFFSET_M * m.rotation[:, 2], -m.rotation[:, 2]
+
+
+def _axis(tilt_deg, azimuth_deg):
+    """Unit axis tilted ``tilt_deg`` from world +z towards azimuth ``azimuth_deg`` (from +x towards +y)."""
+    t, f = np.radians(tilt_deg), np.radians(azimuth_deg)
+    return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
+
+
+def _angle(u, v):
+    """Angle between two vectors (rad), from the normalised dot product."""
+    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def test_a_path_without_axes_is_the_vertical_ik_per_waypoint(arm):
+    """No axes: exactly densify + solve_ik without an axis (itself bit for bit the old IK, test_kinematics)."""
+    limits = MotionLimits.for_model(arm, 1.0, 2.0, 0.1)
+    path = np.array([[0.45, -0.05, 0.25], [0.40, -0.10, 0.06], [0.52, 0.03, 0.06], [0.60, 0.12, 0.12]])
+    dense = densify(np.vstack([arm.fk(Q_HOME)[0][None], path]), 0.01)
+    qs, q = [Q_HOME], Q_HOME
+    for target in dense[1:]:
+        q = solve_ik(arm, target, q).q
+        qs.append(q)
+    ref = time_parameterize(np.array(qs), dense, limits)
+    traj = plan_tip_path(arm, path, Q_HOME, limits)
+    assert np.array_equal(traj.positions_rad, ref.positions_rad)
+    assert np.array_equal(traj.times_s, ref.times_s) and np.array_equal(traj.velocities_rad_s, ref.velocities_rad_s)
+    assert "axes_xyz" not in traj.meta
+
+
+def test_bad_axes_of_a_path_are_a_clear_error(arm):
+    limits = MotionLimits.for_model(arm, 1.0, 2.0, 0.1)
+    for bad, match in [([[np.nan, 0.0, 1.0]], "NaN"), ([[0.0, 0.0, 0.0]], "zero"), ("up", "numbers"),
+                       ([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]], r"\(1, 3\) array")]:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with pytest.raises(TrajectoryError, match=match):
+                plan_tip_path(arm, [[0.5, 0.0, 0.1]], Q_HOME, limits, axes_xyz=bad)
+    with pytest.raises(TrajectoryError, match=r"\(2, 3\) array, one per path point"):
+        ik_path(arm, np.array([[0.5, 0.0, 0.1], [0.5, 0.0, 0.12]]), Q_HOME, axes_xyz=np.array([[0.0, 0.0, 1.0]]))
+
+
+def test_slerp_against_closed_form_angles():
+    rng = np.random.default_rng(5)
+    a0 = rng.normal(size=(50, 3))
+    a1 = rng.normal(size=(50, 3))
+    a0 /= np.linalg.norm(a0, axis=1)[:, None]
+    a1 /= np.linalg.norm(a1, axis=1)[:, None]
+    t = rng.uniform(0.0, 1.0, 50)
+    out = slerp_axes(a0, a1, t)
+    theta = np.array([_angle(u, v) for u, v in zip(a0, a1)])
+    np.testing.assert_allclose(np.linalg.norm(out, axis=1), 1.0, atol=1e-12)
+    np.testing.assert_allclose([_angle(u, v) for u, v in zip(a0, out)], t * theta, atol=1e-7)
+    np.testing.assert_allclose([_angle(u, v) for u, v in zip(out, a1)], (1 - t) * theta, atol=1e-7)
+    np.testing.assert_allclose(np.linalg.det(np.stack([a0, a1, out], axis=1)), 0.0, atol=1e-12)  # coplanar
+    np.testing.assert_allclose(slerp_axes(a0, a1, np.zeros(50)), a0, atol=1e-12)
+    np.testing.assert_allclose(slerp_axes(a0, a1, np.ones(50)), a1, atol=1e-12)
+
+
+def test_slerp_of_identical_and_opposite_axes():
+    a = np.array([[0.0, 0.6, 0.8]])
+    np.testing.assert_array_equal(slerp_axes(a, a, np.array([0.3])), a)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        half = slerp_axes(a, -a, np.array([0.5]))[0]
+        quarter = slerp_axes(a, -a, np.array([0.25]))[0]
+    assert _angle(half, a[0]) == pytest.approx(np.pi / 2, abs=1e-9)
+    assert _angle(quarter, a[0]) == pytest.approx(np.pi / 4, abs=1e-9)
+    assert abs(np.linalg.det(np.stack([a[0], half, quarter]))) < 1e-12  # one great circle
+    np.testing.assert_array_equal(slerp_axes(a, -a, np.array([0.5]))[0], half)  # the same choice every time
+
+
+def test_densified_axes_follow_the_great_circles_in_small_steps():
+    """Moves, a turn in place (the same point twice), an exact duplicate (dropped): closed-form counts and angles."""
+    step_m, step_rad = 0.01, 0.05
+    p = np.array([[0.5, 0.0, 0.2], [0.5, 0.0, 0.1], [0.5, 0.0, 0.1], [0.5, 0.0, 0.1], [0.53, 0.0, 0.1]])
+    a = np.array([[0.0, 0.0, 1.0], _axis(30, 0), _axis(70, 120), _axis(70, 120), _axis(70, 120)])
+    out_p, out_a = densify_with_axes(p, a, step_m, step_rad)
+    # Segments after dropping the duplicate: 0 -> 1 (10 cm, 30 deg), 1 -> 2 (in place), 2 -> 4 (3 cm, no turn).
+    ends = [(0, 1), (1, 2), (2, 4)]
+    n = [max(int(np.ceil(np.linalg.norm(p[j] - p[i]) / step_m - 1e-9)),
+             int(np.ceil(_angle(a[i], a[j]) / step_rad - 1e-9)), 1) for i, j in ends]
+    assert len(out_p) == sum(n) + 1
+    np.testing.assert_array_equal(out_p[-1], p[-1])
+    np.testing.assert_allclose(out_a[-1], a[-1], atol=1e-15)
+    k = 0
+    for (i, j), n_seg in zip(ends, n):
+        theta = _angle(a[i], a[j])
+        for m in range(n_seg):
+            np.testing.assert_allclose(out_p[k + m], p[i] + m / n_seg * (p[j] - p[i]), atol=1e-15)
+            assert _angle(a[i], out_a[k + m]) == pytest.approx(m / n_seg * theta, abs=1e-7)
+            assert _angle(out_a[k + m], a[j]) == pytest.approx((1 - m / n_seg) * theta, abs=1e-7)
+        k += n_seg
+    steps_m = np.linalg.norm(np.diff(out_p, axis=0), axis=1)
+    steps_rad = np.array([_angle(u, v) for u, v in zip(out_a[:-1], out_a[1:])])
+    assert steps_m.max() <= step_m + 1e-12 and steps_rad.max() <= step_rad + 1e-9
+    assert np.all((steps_m > 0) | (steps_rad > 0))  # the in-place turn kept, the duplicate dropped
+    assert int(np.sum(steps_m == 0)) == n[1]
+
+
+def test_a_path_with_an_axis_turns_from_the_start_axis_and_ends_on_it(arm, full):
+    limits = MotionLimits.for_model(arm, 1.0, 2.0, 0.1)
+    goal, axis, step_rad = np.array([0.5, 0.1, 0.08]), _axis(60, 135), 0.05
+    traj = plan_tip_path(arm, goal[None], Q_HOME, limits, axes_xyz=axis[None], max_step_rad=step_rad)
+    axes = traj.meta["axes_xyz"]
+    np.testing.assert_allclose(axes[0], _full_tip(full, Q_HOME)[1], atol=1e-12)
+    np.testing.assert_allclose(axes[-1], axis, atol=1e-12)
+    assert max(_angle(u, v) for u, v in zip(axes[:-1], axes[1:])) <= step_rad + 1e-9
+    fk = [_full_tip(full, q) for q in traj.positions_rad]
+    assert max(np.linalg.norm(t - x) for (t, _), x in zip(fk[1:], traj.tip_xyz[1:])) <= 1e-4
+    assert max(_angle(z, a) for (_, z), a in zip(fk[1:], axes[1:])) <= IKSettings().max_tilt_rad
+    assert _angle(fk[-1][1], axis) <= 0.25 * step_rad  # tracked to a quarter step where reachable
+    assert np.abs(np.diff(traj.positions_rad, axis=0)).max() <= 0.3
+
+
+def test_timing_without_tip_travel_even_with_a_repeated_joint_vector(arm):
+    """Pure rotation waypoints (the tip fixed), one of them repeated: finite, increasing, within limits."""
+    limits = MotionLimits.for_model(arm, 0.8, 1.5, 0.1)
+    qs = Q_HOME + np.outer([0.0, 0.05, 0.1, 0.1, 0.2, 0.3], [0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.0])
+    tip = np.repeat(arm.fk(Q_HOME)[0][None], len(qs), axis=0)
+    with np.errstate(all="raise"):
+        traj = time_parameterize(qs, tip, limits)
+    assert np.all(np.diff(traj.times_s) > 0) and np.all(np.isfinite(traj.velocities_rad_s))
+    spline = CubicHermiteSpline(traj.times_s, traj.positions_rad, traj.velocities_rad_s)
+    t = np.linspace(0.0, traj.duration_s, 4000)
+    assert np.all(np.abs(spline(t, 1)) <= limits.velocity_rad_s * (1 + 1e-6))
+    assert np.all(np.abs(spline(t, 2)) <= limits.acceleration_rad_s2 * (1 + 1e-6))
+    assert traj.duration_s >= 0.3 / 0.8  # joint 5 turns 0.3 rad at ≤ 0.8 rad/s: the tip speed bounds nothing

@@ -6,13 +6,23 @@ and plans (world frame, metres, radians, seconds):
 
 - :meth:`tip_path`: a tip polyline from given joints (box-checked, IK per
   waypoint, time-parameterised rest to rest): the free-space path, the
-  guarded approach, a back-off away from a contact;
+  guarded approach, a back-off away from a contact; optionally with a target
+  finger axis per point (the fingertip z-axis, tip → flange, world);
+- :meth:`reorient`: the finger turned in place about the tip centre to a
+  given axis (a tip path of the current tip point with that axis);
 - :meth:`approach_depth_m`: how deep a guarded approach goes (its depth
   shortened to end inside the box);
 - :meth:`joint_move`: a joint-space straight line to given joints (the
   retract, a back-off along a path), every tip waypoint box-checked;
 - :func:`path_point_before`: the last waypoint of a followed path at least a
   clearance of tip travel before a contact (where a path back-off goes).
+
+Finger axis of a path without axes (:meth:`ArmMotions.path_axes`): a finger
+within ``max_tilt_rad + TILTED_START_MARGIN_RAD`` of vertical at the start is
+planned vertical, exactly as before axes existed; a finger tilted farther
+(after :meth:`reorient` or a path with axes) keeps its start axis along the
+whole path, so a guarded approach or a back-off from a tilted finger does not
+swing it back to vertical.
 
 The arm commander sends these plans; the offline loop's simulated rig
 (:mod:`tactile_bringup.rig_touch`) plans its touches with the same object, so
@@ -25,15 +35,20 @@ from typing import Any, Optional
 
 import numpy as np
 
-from tactile_driver.ik import IKSettings
+from tactile_driver.ik import IKSettings, tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
 from tactile_driver.safety import OutsideWorkspace, WorkspaceBox
-from tactile_driver.trajectory import MotionLimits, TimedTrajectory, plan_tip_path, time_parameterize
+from tactile_driver.trajectory import (MAX_AXIS_STEP_RAD, MotionLimits, TimedTrajectory, plan_tip_path,
+                                       time_parameterize, unit_axes)
 
 
 #: A shortened approach ends this far inside the box (m): IK waypoints deviate from the line by
 #: up to ``ik_tol_m`` (the box check of waypoints allows that much, the target's is exact).
 APPROACH_BOX_INSET_M = 5e-4
+#: A start finger counts as tilted (a path without axes then holds its axis) only beyond
+#: ``max_tilt_rad`` + this (rad): a vertical-mode finger a hair past ``max_tilt_rad`` (a stop between two
+#: waypoints of the spline, tracking error) must still be planned vertical, exactly as before.
+TILTED_START_MARGIN_RAD = 0.05
 
 
 class ArmMotions:
@@ -54,14 +69,33 @@ class ArmMotions:
         return MotionLimits(lim.lower_rad, lim.upper_rad, lim.velocity_rad_s, lim.acceleration_rad_s2,
                             speed_mps or self.cfg.tip_speed_mps)
 
+    def path_axes(self, n_points: int, q_start: np.ndarray,
+                  axes_xyz: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
+        """The finger axes a tip path of ``n_points`` from ``q_start`` is planned with: ``axes_xyz`` when
+        given; else None (vertical, today's plan) when the start finger's tilt from world +z is at most
+        ``max_tilt_rad + TILTED_START_MARGIN_RAD``, and otherwise the start's fingertip z-axis (world)
+        for every point (the finger held as it is)."""
+        if axes_xyz is not None:
+            return axes_xyz
+        _, R = self.model.fk(np.asarray(q_start, dtype=float))
+        if tilt_of(R) <= self.ik.max_tilt_rad + TILTED_START_MARGIN_RAD:
+            return None
+        return np.repeat(R[None, :, 2], n_points, axis=0)
+
     def tip_path(self, path_xyz: np.ndarray, q_start: np.ndarray, speed_mps: Optional[float] = None,
-                 step_m: Optional[float] = None) -> TimedTrajectory:
+                 step_m: Optional[float] = None, axes_xyz: Optional[np.ndarray] = None,
+                 step_rad: Optional[float] = None) -> TimedTrajectory:
         """The tip along ``path_xyz`` (K, 3) from joints ``q_start``, at up to ``speed_mps`` (default the
         tip speed), IK waypoints ≤ ``step_m`` apart (default ``waypoint_step_m``).
 
+        ``axes_xyz`` (K, 3): the finger axis (fingertip z-axis, tip → flange, world) at each path point,
+        turned along great circles in steps ≤ ``step_rad`` (default ``MAX_AXIS_STEP_RAD``) from the
+        start's axis; None: see :meth:`path_axes` (vertical unless the start finger is tilted, then held).
+
         Raises:
             OutsideWorkspace: a path point or a planned tip waypoint is outside the box.
-            TrajectoryError: IK failed or a joint limit would be broken.
+            TrajectoryError: IK failed, a joint limit would be broken, or the axes are not finite
+                non-zero (K, 3).
         """
         path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
         # The targets must be inside the box; the IK waypoints towards them within the IK's accuracy: a
@@ -71,10 +105,32 @@ class ArmMotions:
         # tip left within that accuracy outside must be able to move on.
         at_tip = bool(np.linalg.norm(path[0] - self.model.fk(np.asarray(q_start, dtype=float))[0]) < 1e-6)
         self.box.check(path, first=int(at_tip))
-        traj = plan_tip_path(self.model, path, np.asarray(q_start, dtype=float), self._limits(speed_mps),
-                             step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad)
+        axes = self.path_axes(len(path), q_start, axes_xyz)
+        if axes is None:
+            traj = plan_tip_path(self.model, path, np.asarray(q_start, dtype=float), self._limits(speed_mps),
+                                 step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad)
+        else:
+            traj = plan_tip_path(self.model, path, np.asarray(q_start, dtype=float), self._limits(speed_mps),
+                                 step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad,
+                                 axes_xyz=axes, max_step_rad=step_rad or MAX_AXIS_STEP_RAD)
         self.box.check(traj.tip_xyz[1:], slack_m=self.ik.tol_m)
         return traj
+
+    def reorient(self, q_start: np.ndarray, axis_xyz: np.ndarray, step_rad: Optional[float] = None) -> TimedTrajectory:
+        """The finger turned in place about the tip centre, from its axis at ``q_start`` to ``axis_xyz``
+        (world; normalised): a tip path of the current tip point with that axis, the axis along the great
+        circle in steps ≤ ``step_rad`` (default ``MAX_AXIS_STEP_RAD``). Every waypoint's tip is within
+        ``ik_tol_m`` of the start tip; the end axis within ``max_tilt_rad`` of ``axis_xyz`` (a quarter
+        step where the IK gets there). The joint limits set the time (the tip does not travel).
+
+        Raises:
+            TrajectoryError: the axis is not a finite non-zero 3-vector, or IK failed on the way.
+            OutsideWorkspace: the tip is outside the box by more than ``ik_tol_m``.
+        """
+        q0 = np.asarray(q_start, dtype=float)
+        axis = unit_axes(axis_xyz, 1)  # (1, 3); TrajectoryError when not a finite non-zero 3-vector
+        tip = self.model.fk(q0)[0]
+        return self.tip_path(tip[None], q0, axes_xyz=axis, step_rad=step_rad)
 
     def approach_depth_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, depth_m: float,
                          min_depth_m: float = 0.0) -> float:

@@ -1,10 +1,19 @@
 """Time-parameterised joint trajectories along a Cartesian fingertip path.
 
 1. ``densify``: the tip polyline (world frame) is resampled so that no step
-   exceeds ``max_step_m``.
+   exceeds ``max_step_m``. With finger axes (``densify_with_axes``) each
+   point carries a target axis of the fingertip z-axis; on a segment the axis
+   turns along the great circle from one point's axis to the next (slerp, by
+   the fraction of the segment), and no step turns it more than
+   ``max_step_rad`` either: a point repeated with another axis is a rotation
+   of the finger in place, about the tip centre.
 2. ``ik_path``: IK per waypoint, each warm-started from the previous one
    (continuity); a joint jump above ``max_joint_step_rad`` between neighbours
-   is rejected (a flip of the elbow is not a path).
+   is rejected (a flip of the elbow is not a path). With axes, a waypoint is
+   first solved to the tighter tracking tolerance ``AXIS_TRACK_FRACTION ·
+   max_step_rad`` on the axis (else the IK, content within ``max_tilt_rad``,
+   would leave the finger where it is for a step or two and then catch up in
+   one doubled step), falling back to ``max_tilt_rad`` where that fails.
 3. ``time_parameterize`` (TOPP-lite): with s the tip arc length and q'(s) the
    joint tangent of each segment, the path speed is limited per segment by
    ṡ ≤ min(v_tip, min_j v_j / |q'_j|), its acceleration by
@@ -18,23 +27,36 @@
    checked, and time is stretched uniformly, t → c t, q̇ → q̇ / c, so that
    every joint velocity and acceleration limit holds exactly.
 
-Rest to rest: the first and last waypoint velocities are zero.
+Rest to rest: the first and last waypoint velocities are zero. A segment
+without tip travel (a rotation in place) gets the floored length
+``MIN_SEGMENT_M`` as its path length: its tangent is then large and the joint
+velocity and acceleration limits set its time (the tip speed bounds nothing
+there), with no division by zero.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Optional
 
 import numpy as np
 
-from tactile_driver.ik import IKSettings, NoSolutionFound, solve_ik
+from tactile_driver.ik import MIN_AXIS_NORM, IKSettings, NoSolutionFound, solve_ik
 from tactile_driver.kinematics import ArmModel
 
 
 _LOCAL_ITERATIONS = 8
 #: Tip points closer than this are merged (IK residuals must not create micro-segments).
 MERGE_TOL_M = 2e-4
+#: ... unless their finger axes differ by more than this (rad): then the second is a rotation in place.
+MERGE_TOL_RAD = 1e-6
+#: Default largest turn of the finger axis between two waypoints (rad), when axes are given. Near vertical
+#: a 0.1 rad turn took up to 0.33 rad of joint 5 (above the default max_joint_step_rad, 0.3); 0.05 rad halves it.
+MAX_AXIS_STEP_RAD = 0.05
+#: With axes, waypoints are solved to this fraction of the angular step first (tracking tolerance).
+AXIS_TRACK_FRACTION = 0.25
+#: Path length given to a segment without tip travel (m): time_parameterize's floor.
+MIN_SEGMENT_M = 1e-6
 
 
 class TrajectoryError(ValueError):
@@ -50,9 +72,11 @@ class PathNotFeasible(TrajectoryError):
         cause: the :class:`NoSolutionFound` raised by IK.
     """
 
-    def __init__(self, index: int, point_xyz: np.ndarray, cause: NoSolutionFound) -> None:
+    def __init__(self, index: int, point_xyz: np.ndarray, cause: NoSolutionFound,
+                 axis_xyz: Optional[np.ndarray] = None) -> None:
         self.index = int(index)
         self.point_xyz = np.asarray(point_xyz, dtype=float)
+        self.axis_xyz = None if axis_xyz is None else np.asarray(axis_xyz, dtype=float)
         self.cause = cause
         super().__init__(f"waypoint {index} unreachable: {cause}")
 
@@ -97,6 +121,8 @@ class TimedTrajectory:
         positions_rad: (K, n) joint positions.
         velocities_rad_s: (K, n) joint velocities (zero at both ends).
         tip_xyz: (K, 3) the tip waypoints (world, m) the positions were solved for.
+        meta: ``n_joints``; ``axes_xyz`` (K, 3), the target finger axes of the waypoints (world,
+            unit), when the plan was made with axes.
     """
 
     times_s: np.ndarray
@@ -143,27 +169,139 @@ def densify(path_xyz: np.ndarray, max_step_m: float) -> np.ndarray:
     return np.vstack([out, p[-1:]])
 
 
+def unit_axes(axes_xyz: np.ndarray, n_points: int) -> np.ndarray:
+    """``axes_xyz`` as (n_points, 3) unit vectors (world), one per path point.
+
+    Raises:
+        TrajectoryError: wrong shape, NaN or inf, or an axis of norm below ``MIN_AXIS_NORM``.
+    """
+    try:
+        a = np.asarray(axes_xyz, dtype=float)
+    except (TypeError, ValueError):
+        raise TrajectoryError("finger axes must be numbers") from None
+    if a.ndim == 1 and a.size == 3 and n_points == 1:
+        a = a[None]
+    if a.shape != (n_points, 3):
+        raise TrajectoryError(f"finger axes must be a ({n_points}, 3) array, one per path point, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise TrajectoryError("finger axes contain NaN or inf")
+    norm = np.linalg.norm(a, axis=1)
+    if np.any(norm < MIN_AXIS_NORM):
+        raise TrajectoryError(f"finger axis {int(np.argmax(norm < MIN_AXIS_NORM))} is zero: it has no direction")
+    return a / norm[:, None]
+
+
+def axis_angles(a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
+    """(M,) angle (rad, in [0, π]) between unit rows of ``a0`` and ``a1`` (M, 3): atan2(|a0 × a1|, a0 · a1)."""
+    return np.arctan2(np.linalg.norm(np.cross(a0, a1), axis=-1), np.einsum("...i,...i->...", a0, a1))
+
+
+def slerp_axes(a0: np.ndarray, a1: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """Great-circle interpolation of unit vectors (M, 3), row-wise, at fractions ``frac`` (M,) in [0, 1].
+
+    a(t) = cos(tθ) a0 + sin(tθ) u, θ = angle(a0, a1), u the unit component of a1 orthogonal to
+    a0: a(0) = a0, a(1) = a1, and the angle from a0 grows as tθ. Identical axes (θ below
+    ``MERGE_TOL_RAD``) give a0. Opposite axes have no unique great circle: u is then a0 × e
+    normalised, e the world axis least aligned with a0 (the same choice every time).
+    """
+    a0 = np.atleast_2d(np.asarray(a0, dtype=float))
+    a1 = np.atleast_2d(np.asarray(a1, dtype=float))
+    t = np.asarray(frac, dtype=float).reshape(-1)
+    theta = axis_angles(a0, a1)
+    ortho = a1 - np.einsum("ij,ij->i", a0, a1)[:, None] * a0
+    n_ortho = np.linalg.norm(ortho, axis=1)
+    # Nearly opposite (sin θ tiny, cos θ < 0): the orthogonal part is noise; pick a fixed perpendicular.
+    opposite = (n_ortho < 1e-9) & (theta > np.pi / 2)
+    e = np.eye(3)[np.argmin(np.abs(a0), axis=1)]
+    perp = np.cross(a0, e)
+    perp /= np.linalg.norm(perp, axis=1)[:, None]
+    u = np.where(opposite[:, None], perp, ortho / np.maximum(n_ortho, 1e-300)[:, None])
+    ang = t * theta
+    out = np.cos(ang)[:, None] * a0 + np.sin(ang)[:, None] * u
+    same = theta <= MERGE_TOL_RAD
+    out = np.where(same[:, None], a0, out)
+    return out / np.linalg.norm(out, axis=1)[:, None]
+
+
+def densify_with_axes(path_xyz: np.ndarray, axes_xyz: np.ndarray, max_step_m: float,
+                      max_step_rad: float = MAX_AXIS_STEP_RAD) -> tuple[np.ndarray, np.ndarray]:
+    """Resample a polyline (K, 3) with a finger axis per point (K, 3) (world; normalised here).
+
+    Per segment k (points p_k → p_{k+1}, axes a_k → a_{k+1}, angle θ_k between them):
+    n_k = max(1, ⌈|Δp_k| / max_step_m⌉, ⌈θ_k / max_step_rad⌉) equal steps; the point at
+    fraction f = i / n_k is p_k + f Δp_k, its axis slerp(a_k, a_{k+1}, f), so no step moves the
+    tip more than ``max_step_m`` nor turns the axis more than ``max_step_rad``. A point is
+    dropped only when it repeats the previous one in position (≤ ``MERGE_TOL_M``) and axis
+    (≤ ``MERGE_TOL_RAD``): a point repeated with another axis is a rotation in place.
+
+    Returns:
+        (points (M, 3), axes (M, 3)); the last ones are the last path point and axis exactly.
+
+    Raises:
+        TrajectoryError: bad shapes, NaN or inf, a zero axis, a non-positive step.
+    """
+    p = np.asarray(path_xyz, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0:
+        raise TrajectoryError(f"path must be a non-empty (K, 3) array, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise TrajectoryError("path contains NaN or inf")
+    if max_step_m <= 0 or not max_step_rad > 0:
+        raise TrajectoryError("max_step_m and max_step_rad must be positive")
+    a = unit_axes(axes_xyz, len(p))
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    ang = axis_angles(a[:-1], a[1:])
+    keep = np.concatenate([[True], (seg > MERGE_TOL_M) | (ang > MERGE_TOL_RAD)])
+    last = np.flatnonzero(keep)[-1]
+    if last > 0 and not keep[-1]:  # end exactly at the last point (and axis), not at its near-duplicate
+        keep[last], keep[-1] = False, True
+    p, a = p[keep], a[keep]
+    if len(p) == 1:
+        return p, a
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    ang = axis_angles(a[:-1], a[1:])
+    n_sub = np.maximum.reduce([np.ones(len(seg), dtype=int),
+                               np.ceil(seg / max_step_m - 1e-9).astype(int),
+                               np.ceil(ang / max_step_rad - 1e-9).astype(int)])
+    seg_idx = np.repeat(np.arange(len(seg)), n_sub)
+    frac = np.concatenate([np.arange(n) / n for n in n_sub])
+    out_p = p[seg_idx] + frac[:, None] * (p[seg_idx + 1] - p[seg_idx])
+    out_a = slerp_axes(a[seg_idx], a[seg_idx + 1], frac)
+    return np.vstack([out_p, p[-1:]]), np.vstack([out_a, a[-1:]])
+
+
 def ik_path(
     model: ArmModel,
     path_xyz: np.ndarray,
     q_start: np.ndarray,
     settings: IKSettings = IKSettings(),
     max_joint_step_rad: float = 0.3,
+    axes_xyz: Optional[np.ndarray] = None,
+    track_tilt_rad: Optional[float] = None,
 ) -> np.ndarray:
     """(K, n) joint positions for the tip waypoints, each warm-started from the previous one.
+
+    ``axes_xyz`` (K, 3): the target fingertip z-axis of each waypoint (world; normalised
+    here); None: vertical everywhere (the IK's default, unchanged). ``track_tilt_rad`` (with
+    axes): each waypoint is first solved to an axis error ≤ min(``max_tilt_rad``,
+    ``track_tilt_rad``), and only where that fails to ``max_tilt_rad``.
 
     Raises:
         PathNotFeasible: IK fails at a waypoint.
         Discontinuity: neighbouring solutions differ by more than ``max_joint_step_rad``.
+        TrajectoryError: axes of the wrong shape, not finite, or zero.
     """
     path = np.asarray(path_xyz, dtype=float)
+    axes = None if axes_xyz is None else unit_axes(axes_xyz, len(path))
     qs = np.empty((len(path), model.nq))
     q = np.asarray(q_start, dtype=float)
     for k, target in enumerate(path):
         try:
-            q = solve_ik(model, target, q, settings).q
+            if axes is None:
+                q = solve_ik(model, target, q, settings).q
+            else:
+                q = _solve_tracking(model, target, q, settings, axes[k], track_tilt_rad)
         except NoSolutionFound as exc:
-            raise PathNotFeasible(k, target, exc) from None
+            raise PathNotFeasible(k, target, exc, None if axes is None else axes[k]) from None
         qs[k] = q
     jumps = np.abs(np.diff(np.vstack([np.asarray(q_start, float)[None], qs]), axis=0))
     # The first waypoint is allowed to move the start posture (it may be off the start point).
@@ -173,6 +311,19 @@ def ik_path(
         k, j = bad[0]
         raise Discontinuity(int(k), model.joint_names[j], jumps[k, j], max_joint_step_rad)
     return qs
+
+
+def _solve_tracking(model: ArmModel, target_xyz: np.ndarray, q_init: np.ndarray, settings: IKSettings,
+                    axis_xyz: np.ndarray, track_tilt_rad: Optional[float]) -> np.ndarray:
+    """IK of one waypoint with an axis: to ``track_tilt_rad`` on the axis if that converges, else to
+    ``settings.max_tilt_rad`` (the failure of that one is raised)."""
+    if track_tilt_rad is not None and track_tilt_rad < settings.max_tilt_rad:
+        try:
+            return solve_ik(model, target_xyz, q_init, replace(settings, max_tilt_rad=track_tilt_rad),
+                            axis_xyz=axis_xyz).q
+        except NoSolutionFound:
+            pass
+    return solve_ik(model, target_xyz, q_init, settings, axis_xyz=axis_xyz).q
 
 
 def _trapezoid_time(v0: np.ndarray, v1: np.ndarray, vmax: np.ndarray, a: np.ndarray, ds: np.ndarray) -> np.ndarray:
@@ -219,7 +370,7 @@ def time_parameterize(qs: np.ndarray, tip_xyz: np.ndarray, limits: MotionLimits)
     ds_tip = np.linalg.norm(np.diff(tip, axis=0), axis=1)
     dq = np.diff(qs, axis=0)
     # Path parameter: tip arc length, floored so a pure reorientation still has a length.
-    ds = np.maximum(ds_tip, 1e-6)
+    ds = np.maximum(ds_tip, MIN_SEGMENT_M)
     tangent = dq / ds[:, None]  # q'(s) per segment
     abs_t = np.maximum(np.abs(tangent), 1e-12)
     v_seg = np.minimum(limits.tip_speed_mps, (limits.velocity_rad_s / abs_t).min(axis=1))
@@ -268,17 +419,52 @@ def plan_tip_path(
     max_step_m: float = 0.01,
     settings: IKSettings = IKSettings(),
     max_joint_step_rad: float = 0.3,
+    axes_xyz: Optional[np.ndarray] = None,
+    max_step_rad: float = MAX_AXIS_STEP_RAD,
 ) -> TimedTrajectory:
     """Rest-to-rest trajectory from ``q_start`` through the tip polyline ``path_xyz`` (world, m).
 
     The current tip position (FK of ``q_start``) is prepended to the path, so
     the trajectory starts exactly at the measured state.
+
+    ``axes_xyz`` (K, 3): the target fingertip z-axis (tip → flange, world) at each path point.
+    The start's axis is the fingertip z-axis of ``q_start`` (FK); densification turns it along
+    great circles, at most ``max_step_rad`` per waypoint (:func:`densify_with_axes`), each
+    waypoint is tracked to ``AXIS_TRACK_FRACTION · max_step_rad`` where the IK gets there
+    (:func:`ik_path`; the end then lies that close to the last axis, else within
+    ``max_tilt_rad``), and the waypoint axes are kept in ``meta['axes_xyz']``. None: the
+    vertical finger, planned exactly as without axes (``max_step_rad`` unused).
     """
+    if axes_xyz is None:
+        return _plan_vertical(model, path_xyz, q_start, limits, max_step_m, settings, max_joint_step_rad)
+    return _plan_with_axes(model, path_xyz, q_start, limits, max_step_m, settings, max_joint_step_rad, axes_xyz,
+                           max_step_rad)
+
+
+def _plan_vertical(model: ArmModel, path_xyz: np.ndarray, q_start: np.ndarray, limits: MotionLimits,
+                   max_step_m: float, settings: IKSettings, max_joint_step_rad: float) -> TimedTrajectory:
+    """:func:`plan_tip_path` without axes: the finger vertical (the plan as it was before axes)."""
     start_xyz, _ = model.fk(q_start)
     path = densify(np.vstack([start_xyz[None], np.asarray(path_xyz, dtype=float).reshape(-1, 3)]), max_step_m)
     qs = ik_path(model, path[1:], q_start, settings, max_joint_step_rad) if len(path) > 1 else np.empty((0, model.nq))
     qs = np.vstack([np.asarray(q_start, float)[None], qs])
     return time_parameterize(qs, path, limits)
+
+
+def _plan_with_axes(model: ArmModel, path_xyz: np.ndarray, q_start: np.ndarray, limits: MotionLimits,
+                    max_step_m: float, settings: IKSettings, max_joint_step_rad: float, axes_xyz: np.ndarray,
+                    max_step_rad: float) -> TimedTrajectory:
+    """:func:`plan_tip_path` with a finger axis per path point (world), from the start's FK axis."""
+    start_xyz, start_rot = model.fk(q_start)
+    points = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+    axes = unit_axes(axes_xyz, len(points))
+    path, path_axes = densify_with_axes(np.vstack([start_xyz[None], points]), np.vstack([start_rot[None, :, 2], axes]),
+                                        max_step_m, max_step_rad)
+    qs = (ik_path(model, path[1:], q_start, settings, max_joint_step_rad, path_axes[1:],
+                  AXIS_TRACK_FRACTION * max_step_rad) if len(path) > 1 else np.empty((0, model.nq)))
+    traj = time_parameterize(np.vstack([np.asarray(q_start, float)[None], qs]), path, limits)
+    traj.meta["axes_xyz"] = path_axes
+    return traj
 
 
 def sample_hermite(traj: TimedTrajectory, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
