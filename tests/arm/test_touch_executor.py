@@ -28,7 +28,9 @@ class FakeArm:
         self.plan_error = plan_error
         self.calls = []
         self.cfg = SimpleNamespace(dry_run=False, approach_speed_mps=0.02, approach_step_m=0.005,
-                                   sensor_confirm_timeout_s=10.0)
+                                   sensor_confirm_timeout_s=10.0, max_tilt_rad=0.1)
+        self.tilt_rad = 0.0  # the finger's tilt now (a test sets it)
+        self.paths = []  # (path, axes) of each follow_path
         self.sensor_decided_s = np.inf  # the driver has judged every frame (a test sets it behind)
         self.estop = EStopLatch()
         self.model = SimpleNamespace(fk=lambda q: (np.array([0.4, 0.2, 0.06 + q[0]]), np.eye(3)))
@@ -44,7 +46,7 @@ class FakeArm:
     def approach_depth_m(self, start_xyz, direction_xyz, depth_m, min_depth_m=0.0):
         return depth_m  # the box never shortens an approach here
 
-    def plan(self, path, q_start=None, speed_mps=None, step_m=None):
+    def plan(self, path, q_start=None, speed_mps=None, step_m=None, axes_xyz=None):
         self.calls.append("plan")
         if self.plan_error:
             raise self.plan_error
@@ -71,8 +73,12 @@ class FakeArm:
                                      contact_stamp_ns=42 if contact is not None or result == TaskResult.CONTACT else 0)
         return True
 
-    def follow_path(self, path):
+    def follow_path(self, path, axes_xyz=None):
+        self.paths.append((np.asarray(path), None if axes_xyz is None else np.asarray(axes_xyz)))
         return self._verb("follow_path", 0.3)
+
+    def finger_tilt_rad(self):
+        return self.tilt_rad
 
     def approach(self, direction, depth):
         return self._verb("approach", 0.02)
@@ -228,3 +234,71 @@ def test_an_approach_stopped_for_the_sensor_again_and_again_ends_the_touch():
     free, done = run(arm)
     assert [c for c in arm.calls if c != "plan"].count("approach") == SENSOR_RETRIES + 1
     assert done[0].outcome == "aborted" and done[0].reason.startswith("approach:") and arm.results == []
+
+
+def _tilted_request():
+    from tactile_common.finger_axis import TiltedTail
+
+    a = np.array([0.0, -np.sin(1.0), np.cos(1.0)])
+    entry, pre = np.array([0.4, 0.25, 0.09]), np.array([0.4, 0.2, 0.06])
+    path = np.array([[0.3, 0.3, 0.2], entry, entry])
+    axes = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], a])
+    return TouchRequest(7, pre, np.array([0.0, 1.0, 0.0]), path, path_axes_xyz=axes,
+                        tail=TiltedTail(entry, a)), a, entry
+
+
+def run_tilted(arm, tilt_rad=1.0):
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append((p, s, sweep)), done.append)
+    req, a, entry = _tilted_request()
+    arm.tilt_rad = tilt_rad
+    ex.submit(req)
+    for _ in range(10):
+        arm.t += 0.3
+        ex.update()
+    return done, a, entry
+
+
+def test_a_tilted_touch_follows_its_axes_and_ends_vertical_at_its_entry_point():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.SUCCEEDED, TaskResult.SUCCEEDED])
+    done, a, entry = run_tilted(arm)
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract", "follow_path"]
+    (path, axes), (back, back_axes) = arm.paths
+    np.testing.assert_array_equal(axes[-1], a)  # the pre-touch point appended with the tail's axis
+    assert len(axes) == len(path) == 4
+    np.testing.assert_array_equal(back, [entry, entry])  # back along the axis, then turned vertical
+    np.testing.assert_array_equal(back_axes, [a, [0.0, 0.0, 1.0]])
+    r = done[0]
+    assert r.outcome == "contact" and r.end_xyz_m == tuple(entry)  # the next touch starts at the entry
+    assert r.travel_m == pytest.approx(0.3 + 0.02 + 0.02 + 0.3) and r.duration_s == pytest.approx(4 * 0.3 + 0.5)
+
+
+def test_a_tilted_touch_that_could_not_turn_back_says_so():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.SUCCEEDED, TaskResult.ABORTED])
+    done, _, _ = run_tilted(arm)
+    assert done[0].outcome == "aborted" and "turning the finger back to vertical" in done[0].reason
+
+
+@pytest.mark.parametrize("results, tilt, moves", [
+    ([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.SUCCEEDED], 0.05, 3),  # already vertical: no turn
+    ([TaskResult.ABORTED], 0.0, 1),  # the path stopped before the turn
+])
+def test_a_vertical_finger_is_not_turned_back(results, tilt, moves):
+    arm = FakeArm(results)
+    done, _, _ = run_tilted(arm, tilt)
+    assert len([c for c in arm.calls if c != "plan"]) == moves and len(done) == 1
+
+
+def test_an_estop_leaves_a_tilted_finger_where_it_is():
+    arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT])
+    free, done = [], []
+    ex = TouchExecutor(arm, 0.04, 0.5, lambda p, s, sweep: free.append((p, s, sweep)), done.append)
+    req, _, _ = _tilted_request()
+    arm.tilt_rad = 1.0
+    ex.submit(req)
+    ex.update()
+    ex.update()
+    arm.estop.set(True)
+    arm.t += 1.0
+    ex.update()
+    assert done[0].reason == "e-stop" and len(arm.paths) == 1

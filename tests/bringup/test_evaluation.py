@@ -119,21 +119,6 @@ def test_a_tilted_rod_is_checked_along_its_axis_and_while_it_turns():
     assert L > 0.07
 
 
-def test_densified_axes_turn_on_the_great_circle_and_the_rods_end_moves_at_most_a_step():
-    from tactile_common.touch_geometry import densify_axes
-
-    tips = np.array([[0.5, 0.0, 0.1], [0.5, 0.0, 0.1], [0.55, 0.0, 0.1]])
-    axes = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [0.0, -1.0, 0.0]])
-    P, A = densify_axes(tips, axes, 0.002, 0.16)
-    np.testing.assert_allclose(np.linalg.norm(A, axis=1), 1.0)
-    assert np.abs(A[:, 0]).max() < 1e-12  # the y-z great circle
-    ends = P + 0.16 * A
-    assert np.linalg.norm(np.diff(ends, axis=0), axis=1).max() <= 0.002 * 1.42  # nlerp's uneven steps ≤ √2
-    assert np.linalg.norm(np.diff(P, axis=0), axis=1).max() <= 0.002 + 1e-12
-    np.testing.assert_allclose(P[[0, -1]], tips[[0, -1]])
-    np.testing.assert_allclose(A[[0, -1]], axes[[0, -1]])
-
-
 def test_the_tip_track_carries_the_finger_axis_to_the_approachs_end():
     from tactile_bringup.progress import _tip_track
 

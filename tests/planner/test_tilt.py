@@ -30,11 +30,12 @@ def rod_sdf_min(tip, axis, start, stop, step=0.001):
     return float(mushroom_sdf(np.asarray(tip)[None] + t[:, None] * np.asarray(axis)[None]).min())
 
 
-def entries_for(graph, target, normal, max_tilt=np.pi / 2):
+def entries_for(graph, target, normal, max_tilt=np.pi / 2, min_flange_z_m=0.0):
     target, normal = np.atleast_2d(target).astype(float), np.atleast_2d(normal).astype(float)
     pre = target + (R_TIP + STANDOFF) * normal
     contact = target + R_TIP * normal
-    return pre, contact, tilted_entries(graph, pre, contact, normal, R_TIP, TOUCH_NEED, PATH_NEED, max_tilt)
+    return pre, contact, tilted_entries(graph, pre, contact, normal, R_TIP, TOUCH_NEED, PATH_NEED, max_tilt,
+                                        TiltSettings(min_flange_z_m=min_flange_z_m))
 
 
 CASES = {
@@ -71,6 +72,15 @@ def test_an_entry_under_the_deck_keeps_the_rod_out_of_the_exact_object(graph, ca
         assert rod_sdf_min(E, axis, R_TIP, LENGTH) >= PATH_NEED - INTERP_TOL_M
 
 
+@pytest.mark.parametrize("case", CASES)
+def test_the_flange_stays_above_its_height_over_the_table(graph, case):
+    pre, _, e = entries_for(graph, *CASES[case], min_flange_z_m=0.10)
+    if e.ok[0]:
+        assert pre[0, 2] + LENGTH * e.axis_xyz[0, 2] >= 0.10
+    # under the deck the finger must lie nearly level: its flange would be 8 cm over the table
+    assert e.ok[0] == (case != "deck underside")
+
+
 def test_the_rod_points_out_of_the_side_it_faces(graph):
     _, _, e = entries_for(graph, *CASES["pillar side under the deck"])
     assert e.axis_xyz[0, 0] > 0.5  # towards +x, the way the normal points
@@ -105,14 +115,14 @@ def test_the_planner_tilts_the_finger_only_for_what_the_vertical_one_cannot_touc
     from tactile_planner.planner import SHAFT_REASON, TouchPlanner
     from test_shaft import SHAFT, mushroom_map
 
-    cands = np.array([list(CASES["pillar side under the deck"][0]), list(CASES["deck underside"][0])])
-    normals = np.array([list(CASES["pillar side under the deck"][1]), list(CASES["deck underside"][1])])
+    cands = np.array([list(CASES["pillar side under the deck"][0]), list(CASES["pillar front under the deck"][0])])
+    normals = np.array([list(CASES["pillar side under the deck"][1]), list(CASES["pillar front under the deck"][1])])
     m = mushroom_map(cands, normals)
     tip = np.array([0.62, 0.0, 0.16])
     params = {"mode": "3d", "strategy": "uncertainty", "support_gap_m": 0.0, "search_quantile": 0.0, **SHAFT}
     vertical = TouchPlanner.from_params(params, seed=0)
     res = vertical.plan(m, tip)
-    assert not res.ok and vertical.last_why[SHAFT_REASON][0] and vertical.last_why["facing down"][1]
+    assert not res.ok and vertical.last_why[SHAFT_REASON].all()
     assert len(res.path_axes_xyz) == 0
 
     planner = TouchPlanner.from_params({**params, "tilt_max_rad": np.pi / 2}, seed=0)

@@ -27,8 +27,8 @@ from typing import Optional
 
 import numpy as np
 
-from tactile_common.touch_geometry import densify_axes, rod_points
-from tactile_driver.trajectory import densify
+from tactile_common.touch_geometry import rod_points
+from tactile_driver.trajectory import densify, densify_with_axes
 from tactile_sim import metrics
 from tactile_sim.objects import SDFObject, make_object
 
@@ -92,8 +92,8 @@ class Evaluator:
         if axes_xyz is None:
             tips, axes = densify(P, step_m), None
         else:
-            tips, axes = densify_axes(P, np.asarray(axes_xyz, dtype=float).reshape(-1, 3)[ok], step_m,
-                                      self.shaft_length_m)
+            tips, axes = densify_with_axes(P, np.asarray(axes_xyz, dtype=float).reshape(-1, 3)[ok], step_m,
+                                           step_m / self.shaft_length_m)  # the rod's end moves ≤ step_m too
         rod = rod_points(tips, self.tip_radius_m, self.shaft_length_m, step_m, axes)
         return float(np.min(self.obj.sdf(rod.reshape(-1, 3)))) - self.shaft_radius_m
 

@@ -21,6 +21,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from tactile_common.finger_axis import EZ
+
 from .cores import make_estimator, make_planner
 from .evaluation import Evaluator
 from .exploration_cycle import CycleConfig
@@ -28,7 +30,7 @@ from .experiment import Experiment
 from .motion import MotionModel, polyline_length_m
 from .progress import misses_before_contact, observe, stop_reason, touch_record
 from .report import make_report
-from .rig_touch import RigFinger
+from .rig_touch import RigError, RigFinger
 from .sensing import SimulatedFinger
 from .slide_touch import observe_stream, slide_touch
 
@@ -94,7 +96,11 @@ class ExplorationLoop:
             else:
                 # Move along the path, approach along the goal's axis, retract; a path that meets the
                 # object stops on the contact and backs off from it (the arm commander's touch).
-                poke = self.poker.poke(plan, tip, len(touches))
+                try:
+                    poke = self.poker.poke(plan, tip, len(touches))
+                except RigError as exc:
+                    stopped = f"rig: {exc}"
+                    break
                 if poke.outcome == "unreachable":  # nothing moved: plan again without that target
                     excluded.append(np.asarray(plan.target_xyz, dtype=float))
                     unreachable_in_row += 1
@@ -123,6 +129,9 @@ class ExplorationLoop:
                 else:
                     travel_m += free_m + poke.approach_m + poke.back_off_m
                     time_s += self.motion.path_contact_time_s(free_m + poke.approach_m, poke.back_off_m)
+                if poke.untilt_m or poke.untilt_s:  # a tilted finger's way back, and its turn on the way in:
+                    travel_m += poke.untilt_m  # the path counted the insertion at tip speed; each way takes
+                    time_s += 2.0 * poke.untilt_s - poke.untilt_m / self.motion.tip_speed_mps  # the planned time
             t1 = time.perf_counter()
             observe(self.estimator, point, normal if contact else sweep, contact)
             stream, used = None, None
@@ -135,7 +144,7 @@ class ExplorationLoop:
             record = touch_record(len(touches), plan.target_xyz, contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
                                   path_xyz=path, path_followed_m=followed_m, slide=slide,
-                                  stream=stream, contacts_used=used)
+                                  stream=stream, contacts_used=used, path_axes_xyz=_with_start(plan.path_axes_xyz))
             touches.append(record)
             if progress is not None:
                 progress(record)
@@ -147,3 +156,10 @@ class ExplorationLoop:
 def run_exploration(experiment: Experiment, progress: Optional[ProgressFn] = None) -> dict:
     """Run one exploration and return its report (see :mod:`tactile_bringup.report`)."""
     return ExplorationLoop(experiment).run(progress)
+
+
+def _with_start(axes_xyz: np.ndarray) -> Optional[np.ndarray]:
+    """The finger axes of a touch's path with the tip's start prepended (vertical: between touches the
+    finger is); None for a vertical finger's path."""
+    axes = np.asarray(axes_xyz, dtype=float).reshape(-1, 3)
+    return np.vstack([EZ, axes]) if len(axes) else None

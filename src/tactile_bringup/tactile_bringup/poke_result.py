@@ -25,7 +25,9 @@ class PokeResult:
     start. ``end_xyz``: the nominal end (the pre-touch point, or the back-off point after a contact on
     the path; the next touch starts there). ``path_followed_m``: tip path length before a contact on
     the path (None: the path was free). ``approach_m``: approach travel to the contact or full depth.
-    ``back_off_m``: tip travel of the back-off after a path contact.
+    ``back_off_m``: tip travel of the back-off after a path contact. A tilted touch
+    (tactile_common.finger_axis): ``untilt_m``, ``untilt_s``: tip travel and planned time of the way
+    back to the entry point with the finger turned vertical there (0: a vertical finger).
     """
 
     outcome: str
@@ -38,6 +40,8 @@ class PokeResult:
     approach_m: float
     back_off_m: float = 0.0
     reason: str = ""
+    untilt_m: float = 0.0
+    untilt_s: float = 0.0
 
     @property
     def contact(self) -> bool:

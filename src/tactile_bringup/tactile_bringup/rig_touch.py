@@ -36,11 +36,12 @@ World frame, metres, seconds.
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 from typing import Any, Optional
 
 import numpy as np
 
+from tactile_common.finger_axis import EZ, TiltedTail, axes_from_quaternions, finger_frame, tilted_tail
 from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix
 from tactile_common.slide_goal import decode_path
 from tactile_common.stamps import duration_from_s, ns_from_s, stamp_s, time_from_ns
@@ -49,6 +50,7 @@ from tactile_driver.arm_motions import ArmMotions, path_point_before, tip_travel
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
+from tactile_driver.ik import tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
 from tactile_driver.protocol import encode_frame
 from tactile_driver.safety import OutsideWorkspace
@@ -63,6 +65,10 @@ from .poke_result import PokeResult
 from .sensing import layout_for
 
 TICK_NS = 10_000_000  # the rig's tick (sim_rig rate_hz 100)
+
+
+class RigError(RuntimeError):
+    """The simulated rig cannot go on (the run stops with this reason)."""
 
 
 def _from_params(cls, params: dict, prefix: str = ""):
@@ -184,7 +190,45 @@ class RigFinger:
     def poke(self, plan: Any, tip_xyz: Optional[np.ndarray] = None, touch_index: int = 0) -> PokeResult:
         """The touch the commander makes of a planner decision (module docstring). The arm starts from
         its joints (where the last touch ended, ``tip_xyz``); the noise keys follow the motions, so
-        ``touch_index`` is not needed (the model finger's signature)."""
+        ``touch_index`` is not needed (the model finger's signature). A tilted touch ends with the finger
+        back at its entry point, vertical (tactile_common.finger_axis), as the commander ends it."""
+        result, tail = self._poke(plan)
+        if tail is None or result.outcome == "unreachable":
+            return result
+        return self._untilt(result, tail)
+
+    def _path_axes(self, plan: Any, path: np.ndarray):
+        """The finger axes of ``path`` (the plan's path and its pre-touch point) as the commander decodes
+        them from the planner node's path poses, and the tilted tail (None, None: a vertical finger)."""
+        plan_axes = np.asarray(getattr(plan, "path_axes_xyz", np.zeros((0, 3))), dtype=float).reshape(-1, 3)
+        if not len(plan_axes):
+            return None, None
+        approach = -np.asarray(plan.normal_xyz, dtype=float)
+        sent = np.array([quaternion_xyzw(finger_frame(approach, a)) for a in plan_axes])
+        axes = axes_from_quaternions(sent)
+        axes = np.vstack([axes, axes[-1:]])  # the pre-touch point appended to the path
+        return axes, tilted_tail(path, axes, self.cfg.max_tilt_rad)
+
+    def _untilt(self, result: PokeResult, tail: TiltedTail) -> PokeResult:
+        """Back along the finger's axis to the entry point and turn it vertical there (the commander's end
+        of a tilted touch); the result's end and the extra travel and time (``untilt_m``, ``untilt_s``)."""
+        m = self.motions
+        here, R = m.model.fk(self.q)
+        if tilt_of(R) <= self.cfg.max_tilt_rad:
+            return result  # backed off the path before the finger turned: it is vertical
+        try:
+            traj = m.tip_path(np.vstack([tail.entry_xyz, tail.entry_xyz]), self.q,
+                              axes_xyz=np.vstack([tail.axis_xyz, EZ]))
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            raise RigError(f"the tilted finger cannot go back to its entry point and turn vertical: {exc}") from None
+        self._run(traj)
+        self.q = np.array(traj.positions_rad[-1], dtype=float)
+        self._release(self.q)
+        return replace(result, end_xyz=m.model.fk(self.q)[0],
+                       untilt_m=float(np.linalg.norm(tail.entry_xyz - here)), untilt_s=float(traj.times_s[-1]))
+
+    def _poke(self, plan: Any):
+        """:meth:`poke` up to the tilted finger's way back: (the result, the tilted tail or None)."""
         nan3 = np.full(3, np.nan)
         rotation = quaternion_to_matrix(quaternion_xyzw(approach_rotation(plan.normal_xyz)))  # goal, as sent
         pretouch = np.asarray(plan.pretouch_xyz, dtype=float)
@@ -193,16 +237,17 @@ class RigFinger:
         path = np.vstack([free.reshape(-1, 3), pretouch[None]])
         depth_m = self.geometry.approach_length_m
         cfg, m = self.cfg, self.motions
+        axes, tail = self._path_axes(plan, path)
         try:  # the whole touch is planned before anything moves (tactile_driver.touch_executor)
-            to_goal = m.tip_path(path, self.q)
+            to_goal = m.tip_path(path, self.q, axes_xyz=axes)
             depth_m = m.approach_depth_m(pretouch, direction, depth_m, self.geometry.min_approach_m)
             m.tip_path(pretouch + depth_m * direction, to_goal.positions_rad[-1], cfg.approach_speed_mps,
                        cfg.approach_step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
-            return PokeResult("unreachable", nan3, nan3, 0.0, None, pretouch, None, 0.0, reason=str(exc))
+            return PokeResult("unreachable", nan3, nan3, 0.0, None, pretouch, None, 0.0, reason=str(exc)), tail
         hit, path_start_s = self._run(to_goal)
         if hit is not None:
-            return self._path_contact(hit, to_goal, path_start_s)
+            return self._path_contact(hit, to_goal, path_start_s), tail
         q_origin = np.array(to_goal.positions_rad[-1], dtype=float)
         origin = m.model.fk(q_origin)[0]
         n = np.linalg.norm(direction)
@@ -212,17 +257,17 @@ class RigFinger:
                                   cfg.approach_step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:  # the commander's touch ends 'aborted' there
             self.q = q_origin
-            return PokeResult("aborted", nan3, nan3, 0.0, None, origin, None, 0.0, reason=f"approach: {exc}")
+            return PokeResult("aborted", nan3, nan3, 0.0, None, origin, None, 0.0, reason=f"approach: {exc}"), tail
         hit, _ = self._run(approach, settle_s=self.contact_latency_s)
         travel = float(np.linalg.norm(self._tip_at(hit.stamp_s) - origin)) if hit is not None else 0.0
         self._release(q_origin)
         self.q = q_origin
         if hit is not None:
             return PokeResult("contact", np.asarray(hit.point_xyz, float), np.asarray(hit.normal_xyz, float),
-                              float(hit.force_n), None, pretouch, None, travel)
+                              float(hit.force_n), None, pretouch, None, travel), tail
         end = m.model.fk(approach.positions_rad[-1])[0]
         sweep = m.model.fk(approach.positions_rad[0])[0] - end
-        return PokeResult("free_space", end, nan3, 0.0, sweep, pretouch, None, float(np.linalg.norm(sweep)))
+        return PokeResult("free_space", end, nan3, 0.0, sweep, pretouch, None, float(np.linalg.norm(sweep))), tail
 
     def _tip_at(self, t_s: float) -> np.ndarray:
         """The tip at ``t_s`` of the motion under way (forward kinematics of the controller's joints)."""

@@ -140,21 +140,3 @@ def rod_points(tip_xyz: np.ndarray, start_m: float, length_m: float, step_m: flo
     axis = np.broadcast_to(np.asarray(axis_xyz, dtype=float).reshape(-1, 3), tips.shape)
     return tips[:, None, :] + up[None, :, None] * axis[:, None, :]
 
-
-def densify_axes(tip_xyz: np.ndarray, axis_xyz: np.ndarray, step_m: float, lever_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """A tip polyline (K, 3) with a finger axis at each point (K, 3, unit; world) resampled so that neither the
-    tip nor the rod's far end (``lever_m`` along the axis) moves more than ``step_m`` per step: (M, 3) tips,
-    (M, 3) axes. On each segment the tip goes straight and the axis turns on the great circle (normalised
-    linear interpolation: the same circle, unequal angular steps; axes of a segment less than π apart)."""
-    P = np.asarray(tip_xyz, dtype=float).reshape(-1, 3)
-    A = np.asarray(axis_xyz, dtype=float).reshape(-1, 3)
-    if len(P) < 2:
-        return P.copy(), A.copy()
-    move = np.linalg.norm(np.diff(P, axis=0), axis=1)
-    turn = lever_m * np.arccos(np.clip((A[1:] * A[:-1]).sum(axis=1), -1.0, 1.0))
-    n_sub = np.maximum(1, np.ceil(np.maximum(move, turn) / step_m - 1e-9).astype(int))
-    seg = np.repeat(np.arange(len(n_sub)), n_sub)
-    f = np.concatenate([np.arange(n) / n for n in n_sub])[:, None]
-    tips = np.vstack([P[seg] + f * (P[seg + 1] - P[seg]), P[-1:]])
-    axes = np.vstack([A[seg] + f * (A[seg + 1] - A[seg]), A[-1:]])
-    return tips, axes / np.linalg.norm(axes, axis=1, keepdims=True)

@@ -11,6 +11,7 @@ from nav_msgs.msg import Path
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from tactile_common.finger_axis import axes_from_quaternions
 from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix, xyzw
 from tactile_common.stamps import duration_from_s, stamp_ns  # noqa: F401  (stamp_ns: used by the commander)
 from tactile_driver.trajectory import TimedTrajectory
@@ -38,6 +39,14 @@ def path_xyz(msg: Path) -> np.ndarray:
     """(K, 3) positions of a nav_msgs/Path."""
     return np.array([[p.pose.position.x, p.pose.position.y, p.pose.position.z] for p in msg.poses],
                     dtype=float).reshape(-1, 3)
+
+
+def path_axes(msg: Path) -> np.ndarray:
+    """(K, 3) finger axes of a nav_msgs/Path: each pose's z-axis (tactile_common.finger_axis; an
+    all-zero orientation is the vertical finger)."""
+    q = np.array([[p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z, p.pose.orientation.w]
+                  for p in msg.poses], dtype=float).reshape(-1, 4)
+    return axes_from_quaternions(q)
 
 
 def joint_positions(msg: JointState, names: Sequence[str]) -> Optional[np.ndarray]:

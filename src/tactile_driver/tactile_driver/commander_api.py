@@ -53,6 +53,7 @@ from tactile_common.stamps import ns_from_s, stamp_s, time_from_ns
 from tactile_driver import arm_msgs
 from tactile_driver.contact import back_off_target
 from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
+from tactile_driver.ik import tilt_of
 from tactile_driver.kinematics import PANDA_FLANGE, PANDA_JOINTS
 from tactile_driver.safety import EStopLatch, OutsideWorkspace, Watchdog
 from tactile_driver.slide_loop import FrameContact, SlideLoop, stopping_trajectory, tick_trajectory
@@ -178,10 +179,15 @@ class ArmCommander:
         node.create_timer(c.control_period_s, self._update, clock=self._steady)
 
     # -- verbs ------------------------------------------------------------------
-    def follow_path(self, path_xyz: np.ndarray) -> bool:
-        """Move the tip along a polyline (K, 3), world frame, at up to ``tip_speed_mps``."""
-        return self._start("follow_path", np.asarray(path_xyz, dtype=float).reshape(-1, 3),
-                           self.cfg.tip_speed_mps, self.cfg.waypoint_step_m)
+    def follow_path(self, path_xyz: np.ndarray, axes_xyz: Optional[np.ndarray] = None) -> bool:
+        """Move the tip along a polyline (K, 3), world frame, at up to ``tip_speed_mps``; with ``axes_xyz``
+        (K, 3) the finger axis at each point (:meth:`ArmMotions.tip_path`; None: vertical)."""
+        path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
+        try:
+            traj = self.plan(path, axes_xyz=axes_xyz) if axes_xyz is not None else None
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            return self._reject("follow_path", str(exc))
+        return self._start("follow_path", path, self.cfg.tip_speed_mps, self.cfg.waypoint_step_m, traj=traj)
 
     def approach(self, direction_xyz: np.ndarray, max_depth_m: float) -> bool:
         """Guarded move along ``direction_xyz`` (world) for ``max_depth_m`` at ``approach_speed_mps``,
@@ -408,10 +414,15 @@ class ArmCommander:
         return self.get_result()
 
     def plan(self, path_xyz: np.ndarray, q_start: Optional[np.ndarray] = None, speed_mps: Optional[float] = None,
-             step_m: Optional[float] = None) -> TimedTrajectory:
-        """Check the box and plan a trajectory (no motion). Raises OutsideWorkspace / TrajectoryError."""
+             step_m: Optional[float] = None, axes_xyz: Optional[np.ndarray] = None) -> TimedTrajectory:
+        """Check the box and plan a trajectory (no motion; ``axes_xyz``: :meth:`ArmMotions.tip_path`).
+        Raises OutsideWorkspace / TrajectoryError."""
         q0 = self._plan_start()[0] if q_start is None else np.asarray(q_start, dtype=float)
-        return self.motions.tip_path(path_xyz, q0, speed_mps, step_m)
+        return self.motions.tip_path(path_xyz, q0, speed_mps, step_m, axes_xyz=axes_xyz)
+
+    def finger_tilt_rad(self) -> float:
+        """The finger's angle from vertical (rad) at the joints the next plan starts from."""
+        return tilt_of(self.model.fk(self._plan_start()[0])[1])
 
     # -- internals ----------------------------------------------------------------
     def now_s(self) -> float:

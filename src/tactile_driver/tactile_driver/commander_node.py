@@ -26,6 +26,7 @@ from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.cycle import TouchReport
 from tactile_common.cycle_msgs import report_msg
+from tactile_common.finger_axis import tilted_tail
 from tactile_common.slide_goal import decode_path
 from tactile_common.pointcloud import to_pointcloud2
 from tactile_common.stamps import stamp_ns, time_from_ns
@@ -186,6 +187,11 @@ class ArmCommanderNode(Node):
             path_xyz = plan.free_path_xyz
             if not (np.all(np.isfinite(position)) and np.all(np.isfinite(path_xyz))):
                 raise ValueError("goal or path is not finite")
+            axes = arm_msgs.path_axes(decision.path)[: len(path_xyz)]  # the finger axis at each pose
+            tail = tilted_tail(np.vstack([path_xyz, position[None]]), np.vstack([axes, axes[-1:]]),
+                               self.arm.cfg.max_tilt_rad) if len(axes) else None
+            if tail is not None and plan.is_slide:
+                raise ValueError("a slide with a tilted finger: slides keep the finger vertical")
             frames = {decision.goal.header.frame_id, decision.path.header.frame_id}
             frames |= {ps.header.frame_id for ps in decision.path.poses if ps.header.frame_id}
             if frames != {topics.WORLD_FRAME}:
@@ -195,7 +201,8 @@ class ArmCommanderNode(Node):
             self.get_logger().error(f"invalid goal {decision.stamp_ns}: {exc}")
             return self._publish_done(TouchReport(decision.stamp_ns, OUTCOME_UNREACHABLE, str(exc), None, 0.0, 0.0))
         self.touches.submit(TouchRequest(decision.stamp_ns, position, rotation[:, 0], path_xyz,
-                                         plan.slide_direction_xyz, plan.slide_length_m))
+                                         plan.slide_direction_xyz, plan.slide_length_m,
+                                         axes if tail is not None else None, tail))
 
     def _publish_free_space(self, tip_xyz: np.ndarray, observation_stamp_ns: int, sweep_xyz: np.ndarray) -> None:
         """The probe end (label 0); its normal fields hold the sweep vector back to the approach's start."""

@@ -45,6 +45,7 @@ import numpy as np
 
 from tactile_common import fields
 from tactile_common.cycle import TouchOutcome, TouchReport
+from tactile_common.finger_axis import EZ, TiltedTail
 from tactile_driver.commander_api import ArmCommander, TaskResult
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError
@@ -66,6 +67,8 @@ class TouchRequest:
     path_xyz: np.ndarray  # (K, 3) world, m
     slide_direction_xyz: Optional[np.ndarray] = None  # a slide: unit start direction (world)
     slide_length_m: float = float("nan")  # a slide: planned length (m); NaN: a poke
+    path_axes_xyz: Optional[np.ndarray] = None  # (K, 3) finger axis at each path point; None: vertical
+    tail: Optional[TiltedTail] = None  # a tilted touch: where the finger turns, its axis (tactile_common.finger_axis)
 
     @property
     def is_slide(self) -> bool:
@@ -206,6 +209,14 @@ class TouchExecutor:
             if not arm.retract():
                 return self._done(OUTCOME_ABORTED, f"retract: {arm.last_task.reason}")
             self._state = "retract"
+        elif self._state == "untilt":
+            outcome, reason = self._untilt_then
+            if result != TaskResult.SUCCEEDED:
+                return self._finish(OUTCOME_ABORTED, "; ".join(filter(None, [
+                    reason, f"turning the finger back to vertical: {task.reason}"])))
+            self._travel_planned_m += task.traj.length_m
+            self._end_xyz = np.asarray(self._req.tail.entry_xyz, dtype=float)  # the next touch starts there
+            return self._finish(outcome, reason)
         elif self._state == "retract":
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"retract: {task.reason}")
@@ -227,8 +238,9 @@ class TouchExecutor:
                               + (" in dry run" if self.arm.cfg.dry_run else ""))
         depth = self.slide_approach_length_m if req.is_slide else self.approach_length_m
         path = np.vstack([req.path_xyz.reshape(-1, 3), req.pre_touch_xyz[None]])
+        axes = None if req.path_axes_xyz is None else np.vstack([req.path_axes_xyz, req.path_axes_xyz[-1:]])
         try:  # plan the whole touch before moving (an approach too short to reach the surface: unreachable)
-            to_goal = self.arm.plan(path)
+            to_goal = self.arm.plan(path, axes_xyz=axes)
             depth = self.arm.approach_depth_m(req.pre_touch_xyz, req.approach_dir, depth,
                                               min(self.min_approach_m, depth))
             self.arm.plan(req.pre_touch_xyz + depth * req.approach_dir,
@@ -236,7 +248,7 @@ class TouchExecutor:
                           step_m=self.arm.cfg.approach_step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
             return self._done(OUTCOME_UNREACHABLE, str(exc))
-        if not self.arm.follow_path(path):
+        if not self.arm.follow_path(path, axes):
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
 
@@ -269,6 +281,18 @@ class TouchExecutor:
         self._state = "retract"
 
     def _done(self, outcome: str, reason: str) -> None:
+        """End the touch; a tilted finger first goes back to its entry point and turns vertical there
+        (tactile_common.finger_axis), unless nothing moved, the e-stop is engaged or it is vertical."""
+        tail, arm = self._req.tail, self.arm
+        if (tail is not None and self._state != "untilt" and outcome != OUTCOME_UNREACHABLE
+                and not arm.estop.engaged and arm.finger_tilt_rad() > arm.cfg.max_tilt_rad):
+            if arm.follow_path(np.vstack([tail.entry_xyz, tail.entry_xyz]), np.vstack([tail.axis_xyz, EZ])):
+                self._untilt_then, self._state = (outcome, reason), "untilt"
+                return
+            reason = "; ".join(filter(None, [reason, f"the finger stays tilted: {arm.last_task.reason}"]))
+        self._finish(outcome, reason)
+
+    def _finish(self, outcome: str, reason: str) -> None:
         req = self._req
         travel = self._travel_planned_m if self.arm.cfg.dry_run else self.arm.odometer_m - self._odo0_m
         end = None if outcome == OUTCOME_ABORTED or self._end_xyz is None else tuple(map(float, self._end_xyz))

@@ -32,6 +32,7 @@ from std_msgs.msg import Header
 from tactile_common import qos, topics
 from tactile_common.cycle import PlannerAnswer, PlanRequest, TouchOutcome, xyz_text
 from tactile_common.cycle_msgs import answer_msg, report_from_msg, request_from_msg
+from tactile_common.finger_axis import EZ, finger_frame
 from tactile_common.node_main import run_node
 from tactile_common.params import declare_parameters
 from tactile_common.slide_goal import encode_path, slide_rotation
@@ -200,12 +201,16 @@ class SocPlannerNode(Node):
         return msg
 
     def path_msg(self, res: PlanResult, stamp) -> Path:
+        """The path; each pose's orientation is the finger's frame there (tactile_common.finger_axis)."""
         path = Path(header=self.header(stamp))
-        q = quaternion_xyzw(self._rotation(res))
         points = res.path_xyz
+        axes = res.path_axes_xyz if len(res.path_axes_xyz) else np.tile(EZ, (len(points), 1))
         if self._is_slide(res):  # the slide marker after the pre-touch point
             points = encode_path(points, res.pretouch_xyz, res.slide_direction_xyz, res.slide_length_m)
-        for pt in points:
+            axes = np.vstack([axes, np.tile(EZ, (len(points) - len(axes), 1))])
+        approach = -np.asarray(res.normal_xyz, dtype=float)
+        for pt, axis in zip(points, axes):
+            q = quaternion_xyzw(finger_frame(approach, axis))
             ps = PoseStamped(header=self.header(stamp))
             ps.pose.position.x, ps.pose.position.y, ps.pose.position.z = map(float, pt)
             ps.pose.orientation.x, ps.pose.orientation.y, ps.pose.orientation.z, ps.pose.orientation.w = map(float, q)

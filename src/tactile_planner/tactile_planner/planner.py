@@ -108,6 +108,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                      "finger\"; 0 = off: the finger stays vertical)", {"ge": 0.0, "le": 1.5708}),
     "tilt_insert_max_m": (0.06, "3D: the longest straight insertion of a tilted finger, from its entry point "
                           "(where it turns) to the pre-touch point", {"gt": 0.0}),
+    "tilt_min_flange_z_m": (0.10, "3D: a tilted finger keeps its flange (the rod's far end) at least this high "
+                            "above the table at the pre-touch point: the wrist is wider than the rod", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -353,7 +355,8 @@ class TouchPlanner:
             got = tilted_entries(graph, pretouch[ask], target[ask] + tip_radius_m * normal[ask], normal[ask],
                                  tip_radius_m, float(p["shaft_radius_m"]) + float(p["shaft_gap_m"]),
                                  float(p["shaft_radius_m"]) + skin, tilt,
-                                 replace(TiltSettings(), insert_max_m=float(p["tilt_insert_max_m"])))
+                                 replace(TiltSettings(), insert_max_m=float(p["tilt_insert_max_m"]),
+                                         min_flange_z_m=float(p["tilt_min_flange_z_m"])))
             out.axis_xyz[ask], out.entry_xyz[ask], out.insert_m[ask] = got.axis_xyz, got.entry_xyz, got.insert_m
         return out
 

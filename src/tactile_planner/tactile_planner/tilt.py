@@ -20,7 +20,10 @@ graph (:class:`~tactile_planner.graph.FreeSpaceGraph`):
 - insertion: the tip line p → E keeps the graph's margin (from the estimated surface); the rod line from p along ``a`` keeps
   ``path_need_m`` (the rod's radius + the tip's skin clearance, as on graph paths) up to s + length;
 - entry: the vertical rod above E keeps ``path_need_m``; the turn: the rod keeps it on axes between +z
-  and ``a`` (great circle, every ``turn_step_rad``).
+  and ``a`` (great circle, every ``turn_step_rad``);
+- the wrist: the rod's far end (the flange) at the pre-touch point is at least ``min_flange_z_m`` above
+  the table (the arm's wrist is wider than the rod; a nearly level finger near the table would put it
+  on the table). Nothing else of the arm is modelled: the commander refuses what its IK cannot reach.
 
 Axes tried, smallest tilt first (``tilts_rad``), at each tilt the azimuth of the candidate's outward
 normal first, then the others by their angle from it (the rod leaves the surface it faces); for each
@@ -59,6 +62,7 @@ class TiltSettings:
     insert_step_m: float = 0.01
     rod_step_m: float = 0.006
     turn_step_rad: float = np.pi / 8
+    min_flange_z_m: float = 0.10
 
 
 def finger_axes(normal_xyz: np.ndarray, tilt_rad: float, n_azimuths: int) -> np.ndarray:
@@ -143,6 +147,7 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
         c_tip = np.minimum.accumulate(graph.shaft_field_at(tip_line.reshape(-1, 3)).reshape(R * A, -1), axis=1)
         ok_tip = c_tip[:, 1::2] >= graph.margin_m - 1e-9  # at each whole step
         ok = ok_app[:, None] & ok_rod & np.logical_and.accumulate(ok_tip, axis=1)  # (R·A, K)
+        ok &= (pa[:, 2] + L * ax[:, 2] >= s.min_flange_z_m)[:, None]  # the wrist above the table
         # the entry: the vertical rod, and the rod while turning (only where the rest passed: the costly part)
         E = pa[:, None, :] + steps[None, :, None] * ax[:, None, :]  # (R·A, K, 3)
         if ok.any():
