@@ -220,3 +220,27 @@ def test_an_approach_from_a_tilted_finger_keeps_its_axis(motions, full, q_low):
     # A given axis wins: back to vertical along the same approach.
     up = motions.tip_path(np.array([[0.5, 0.0, 0.06]]), q_tilted, 0.02, 0.005, axes_xyz=[[0.0, 0.0, 1.0]])
     assert _angle(_full_tip(full, up.positions_rad[-1])[1], [0, 0, 1]) <= motions.ik.max_tilt_rad
+
+
+def test_a_tilted_finger_goes_back_through_its_paths_own_joints_to_where_it_turned(motions, full, q_low):
+    """The way back of a tilted touch (ArmMotions.retrace): the plan's waypoints in reverse, down to the last
+    one planned vertical; the tip ends at the entry point, the finger vertical, and no joint jumps."""
+    from tactile_driver.arm_motions import turn_start_index
+
+    tip0 = _full_tip(full, q_low)[0]
+    entry = tip0 + np.array([0.0, 0.04, 0.0])
+    a = _axis(60, 90)
+    path = np.array([entry, entry, entry - 0.03 * a])
+    traj = motions.tip_path(path, q_low, axes_xyz=np.array([[0, 0, 1.0], a, a]))
+    k0 = turn_start_index(traj, motions.ik.max_tilt_rad)
+    assert k0 is not None and np.linalg.norm(traj.tip_xyz[k0] - entry) < 1e-9
+    assert turn_start_index(motions.tip_path(path[:1], q_low), motions.ik.max_tilt_rad) is None
+    back = motions.retrace(traj, traj.positions_rad[-1], k0)
+    np.testing.assert_array_equal(back.positions_rad[1:], traj.positions_rad[k0:][::-1])
+    tip, z = _full_tip(full, back.positions_rad[-1])
+    assert np.linalg.norm(tip - entry) <= motions.ik.tol_m and _angle(z, [0, 0, 1]) <= motions.ik.max_tilt_rad
+    assert np.abs(np.diff(back.positions_rad, axis=0)).max() <= motions.cfg.max_joint_step_rad
+    # from a waypoint part way (a back-off on the path): it starts from the nearest one
+    mid = (k0 + len(traj.positions_rad)) // 2
+    part = motions.retrace(traj, traj.positions_rad[mid], k0)
+    assert len(part.positions_rad) == mid - k0 + 2

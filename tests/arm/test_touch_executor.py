@@ -75,7 +75,14 @@ class FakeArm:
 
     def follow_path(self, path, axes_xyz=None):
         self.paths.append((np.asarray(path), None if axes_xyz is None else np.asarray(axes_xyz)))
-        return self._verb("follow_path", 0.3)
+        ok = self._verb("follow_path", 0.3)
+        if axes_xyz is not None:  # the plan's waypoints: one per path point here
+            self._last.traj.meta["axes_xyz"] = np.asarray(axes_xyz)
+        return ok
+
+    def retrace(self, traj, to_index):
+        self.retraced = (traj, to_index)
+        return self._verb("retrace", 0.3)
 
     def finger_tilt_rad(self):
         return self.tilt_rad
@@ -262,12 +269,12 @@ def run_tilted(arm, tilt_rad=1.0):
 def test_a_tilted_touch_follows_its_axes_and_ends_vertical_at_its_entry_point():
     arm = FakeArm([TaskResult.SUCCEEDED, TaskResult.CONTACT, TaskResult.SUCCEEDED, TaskResult.SUCCEEDED])
     done, a, entry = run_tilted(arm)
-    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract", "follow_path"]
-    (path, axes), (back, back_axes) = arm.paths
+    assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract", "retrace"]
+    [(path, axes)] = arm.paths
     np.testing.assert_array_equal(axes[-1], a)  # the pre-touch point appended with the tail's axis
     assert len(axes) == len(path) == 4
-    np.testing.assert_array_equal(back, [entry, entry])  # back along the axis, then turned vertical
-    np.testing.assert_array_equal(back_axes, [a, [0.0, 0.0, 1.0]])
+    # back through the path's own waypoints to the last one with the finger vertical (at the entry)
+    assert arm.retraced[1] == 1 and arm.retraced[0].meta["axes_xyz"] is not None
     r = done[0]
     assert r.outcome == "contact" and r.end_xyz_m == tuple(entry)  # the next touch starts at the entry
     assert r.travel_m == pytest.approx(0.3 + 0.02 + 0.02 + 0.3) and r.duration_s == pytest.approx(4 * 0.3 + 0.5)
@@ -301,4 +308,4 @@ def test_an_estop_leaves_a_tilted_finger_where_it_is():
     arm.estop.set(True)
     arm.t += 1.0
     ex.update()
-    assert done[0].reason == "e-stop" and len(arm.paths) == 1
+    assert done[0].reason == "e-stop" and "retrace" not in arm.calls

@@ -41,12 +41,12 @@ from typing import Any, Optional
 
 import numpy as np
 
-from tactile_common.finger_axis import EZ, TiltedTail, axes_from_quaternions, finger_frame, tilted_tail
+from tactile_common.finger_axis import TiltedTail, axes_from_quaternions, finger_frame, tilted_tail
 from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix
 from tactile_common.slide_goal import decode_path
 from tactile_common.stamps import duration_from_s, ns_from_s, stamp_s, time_from_ns
 from tactile_common.touch_geometry import TouchGeometry, back_off_target
-from tactile_driver.arm_motions import ArmMotions, path_point_before, tip_travel_at
+from tactile_driver.arm_motions import ArmMotions, path_point_before, tip_travel_at, turn_start_index
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig
 from tactile_driver.driver import DriverConfig, SensorDriver, WorldContact
@@ -210,15 +210,18 @@ class RigFinger:
         return axes, tilted_tail(path, axes, self.cfg.max_tilt_rad)
 
     def _untilt(self, result: PokeResult, tail: TiltedTail) -> PokeResult:
-        """Back along the finger's axis to the entry point and turn it vertical there (the commander's end
-        of a tilted touch); the result's end and the extra travel and time (``untilt_m``, ``untilt_s``)."""
+        """Back along the finger's axis to the entry point and turn it vertical there: the path's plan
+        retraced (the commander's end of a tilted touch, :meth:`ArmMotions.retrace`); the result's end and
+        the extra travel and time (``untilt_m``, ``untilt_s``)."""
         m = self.motions
         here, R = m.model.fk(self.q)
         if tilt_of(R) <= self.cfg.max_tilt_rad:
             return result  # backed off the path before the finger turned: it is vertical
         try:
-            traj = m.tip_path(np.vstack([tail.entry_xyz, tail.entry_xyz]), self.q,
-                              axes_xyz=np.vstack([tail.axis_xyz, EZ]))
+            k0 = turn_start_index(self._path_traj, self.cfg.max_tilt_rad)
+            if k0 is None:
+                raise TrajectoryError("the path's plan has no vertical waypoint before its tilted tail")
+            traj = m.retrace(self._path_traj, self.q, k0)
         except (OutsideWorkspace, TrajectoryError) as exc:
             raise RigError(f"the tilted finger cannot go back to its entry point and turn vertical: {exc}") from None
         self._run(traj)
@@ -239,7 +242,7 @@ class RigFinger:
         cfg, m = self.cfg, self.motions
         axes, tail = self._path_axes(plan, path)
         try:  # the whole touch is planned before anything moves (tactile_driver.touch_executor)
-            to_goal = m.tip_path(path, self.q, axes_xyz=axes)
+            to_goal = self._path_traj = m.tip_path(path, self.q, axes_xyz=axes)
             depth_m = m.approach_depth_m(pretouch, direction, depth_m, self.geometry.min_approach_m)
             m.tip_path(pretouch + depth_m * direction, to_goal.positions_rad[-1], cfg.approach_speed_mps,
                        cfg.approach_step_m)

@@ -38,8 +38,8 @@ import numpy as np
 from tactile_driver.ik import IKSettings, tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
 from tactile_driver.safety import OutsideWorkspace, WorkspaceBox
-from tactile_driver.trajectory import (MAX_AXIS_STEP_RAD, MotionLimits, TimedTrajectory, plan_tip_path,
-                                       time_parameterize, unit_axes)
+from tactile_driver.trajectory import (MAX_AXIS_STEP_RAD, MotionLimits, TimedTrajectory, TrajectoryError,
+                                       plan_tip_path, time_parameterize, unit_axes)
 
 
 #: A shortened approach ends this far inside the box (m): IK waypoints deviate from the line by
@@ -159,6 +159,24 @@ class ArmMotions:
         inside = np.clip(p, self.box.lower_xyz, self.box.upper_xyz)
         return inside if np.linalg.norm(p - inside) <= self.ik.tol_m else p
 
+    def retrace(self, traj: TimedTrajectory, q_start: np.ndarray, to_index: int,
+                speed_mps: Optional[float] = None) -> TimedTrajectory:
+        """Back along the waypoints of a planned ``traj`` in joint space: from ``q_start`` to the waypoint
+        of index ≥ ``to_index`` nearest it (joint distance), then through the waypoints in reverse down
+        to ``to_index``, rest to rest at up to ``speed_mps`` (default the tip speed). The joints the plan
+        went through, so the same IK branch, no new IK: a tilted finger's way back to where it turned
+        (turning it back by IK near vertical, the wrist's singular pose, broke the joint-step limit).
+        Every tip waypoint is box-checked. Raises OutsideWorkspace, TrajectoryError."""
+        qs = np.asarray(traj.positions_rad, dtype=float)
+        q0 = np.asarray(q_start, dtype=float)
+        if not 0 <= to_index < len(qs):
+            raise TrajectoryError(f"retrace to waypoint {to_index} of a plan of {len(qs)}")
+        j = to_index + int(np.argmin(np.linalg.norm(qs[to_index:] - q0, axis=1)))
+        back = np.vstack([q0[None], qs[to_index: j + 1][::-1]])
+        tip = np.array([self.model.fk(q)[0] for q in back])
+        self.box.check(tip[1:], slack_m=self.ik.tol_m)
+        return time_parameterize(back, tip, self._limits(speed_mps))
+
     def joint_move(self, q_start: np.ndarray, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
         """A joint-space straight line ``q_start`` → ``q_goal`` (exactly) in equal joint steps, as many as
         the tip's straight-line span needs at ``step_m`` (the tip's own steps then vary a few per cent
@@ -172,6 +190,19 @@ class ArmMotions:
         tip = np.array([self.model.fk(q)[0] for q in qs])
         self.box.check(tip[1:])
         return time_parameterize(qs, tip, self._limits(speed_mps))
+
+
+def turn_start_index(traj: TimedTrajectory, vertical_tol_rad: float) -> Optional[int]:
+    """The waypoint of a planned path where its finger starts to turn away from vertical (the last one
+    whose target axis is within ``vertical_tol_rad`` of +z, before the tilted ones); None when the plan
+    has no axes or ends vertical."""
+    axes = traj.meta.get("axes_xyz")
+    if axes is None or not len(axes):
+        return None
+    vertical = np.arccos(np.clip(np.asarray(axes, dtype=float)[:, 2], -1.0, 1.0)) <= vertical_tol_rad
+    if vertical[-1] or not vertical.any():
+        return None
+    return int(np.flatnonzero(vertical)[-1])
 
 
 def path_point_before(traj: TimedTrajectory, start_s: float, contact_s: float,

@@ -420,6 +420,15 @@ class ArmCommander:
         q0 = self._plan_start()[0] if q_start is None else np.asarray(q_start, dtype=float)
         return self.motions.tip_path(path_xyz, q0, speed_mps, step_m, axes_xyz=axes_xyz)
 
+    def retrace(self, traj: TimedTrajectory, to_index: int) -> bool:
+        """Back through the waypoints of a planned ``traj`` (joint space, in reverse) from where the arm is
+        to waypoint ``to_index``, at tip speed (:meth:`ArmMotions.retrace`): a tilted finger's way back."""
+        try:
+            back = self.motions.retrace(traj, self._plan_start()[0], to_index)
+        except (OutsideWorkspace, TrajectoryError) as exc:
+            return self._reject("retrace", str(exc))
+        return self._start("retrace", None, self.cfg.tip_speed_mps, self.cfg.waypoint_step_m, traj=back)
+
     def finger_tilt_rad(self) -> float:
         """The finger's angle from vertical (rad) at the joints the next plan starts from."""
         return tilt_of(self.model.fk(self._plan_start()[0])[1])

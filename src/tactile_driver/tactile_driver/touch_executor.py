@@ -45,7 +45,8 @@ import numpy as np
 
 from tactile_common import fields
 from tactile_common.cycle import TouchOutcome, TouchReport
-from tactile_common.finger_axis import EZ, TiltedTail
+from tactile_common.finger_axis import TiltedTail
+from tactile_driver.arm_motions import turn_start_index
 from tactile_driver.commander_api import ArmCommander, TaskResult
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError
@@ -110,6 +111,7 @@ class TouchExecutor:
         self._end_xyz: Optional[np.ndarray] = None
         self._first_obs_ns: Optional[int] = None
         self._slide: Optional[dict] = None  # the slide's outcome (task extra)
+        self._path_traj = None  # the plan of the touch's path (a tilted finger's way back)
 
     @property
     def busy(self) -> bool:
@@ -130,6 +132,7 @@ class TouchExecutor:
         result, task = arm.get_result(), arm.last_task
         slide = self._req.is_slide
         if self._state == "path":
+            self._path_traj = task.traj  # a tilted finger goes back through its waypoints
             if result == TaskResult.ABORTED and task.contact is not None and not arm.estop.engaged:
                 if slide:  # the path met the object: slide on from that contact
                     self._reason = f"path: {task.reason}"
@@ -229,7 +232,7 @@ class TouchExecutor:
     def _begin(self, req: TouchRequest) -> None:
         self._req, self._t0_s, self._odo0_m = req, self.arm.motion_time_s, self.arm.odometer_m
         self._obs_stamp_ns, self._outcome, self._reason, self._travel_planned_m = None, "", "", 0.0
-        self._end_xyz = None
+        self._end_xyz = self._path_traj = None
         self._first_obs_ns, self._slide, self._onset_xyz = None, None, None
         self._dwelt_s = 0.0  # robot time of the dwell (not a motion)
         self._sensor_retries, self._sensor_stop_s = 0, 0.0
@@ -286,10 +289,12 @@ class TouchExecutor:
         tail, arm = self._req.tail, self.arm
         if (tail is not None and self._state != "untilt" and outcome != OUTCOME_UNREACHABLE
                 and not arm.estop.engaged and arm.finger_tilt_rad() > arm.cfg.max_tilt_rad):
-            if arm.follow_path(np.vstack([tail.entry_xyz, tail.entry_xyz]), np.vstack([tail.axis_xyz, EZ])):
+            k0 = None if self._path_traj is None else turn_start_index(self._path_traj, arm.cfg.max_tilt_rad)
+            if k0 is not None and arm.retrace(self._path_traj, k0):
                 self._untilt_then, self._state = (outcome, reason), "untilt"
                 return
-            reason = "; ".join(filter(None, [reason, f"the finger stays tilted: {arm.last_task.reason}"]))
+            why = arm.last_task.reason if k0 is not None else "no planned path to go back along"
+            reason = "; ".join(filter(None, [reason, f"the finger stays tilted: {why}"]))
         self._finish(outcome, reason)
 
     def _finish(self, outcome: str, reason: str) -> None:

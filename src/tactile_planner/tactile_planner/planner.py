@@ -110,6 +110,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                           "(where it turns) to the pre-touch point", {"gt": 0.0}),
     "tilt_min_flange_z_m": (0.10, "3D: a tilted finger keeps its flange (the rod's far end) at least this high "
                             "above the table at the pre-touch point: the wrist is wider than the rod", {"ge": 0.0}),
+    "tilt_turn_s_per_rad": (8.0, "3D: robot time a tilted finger takes to turn, per radian of tilt (each touch turns "
+                            "there and back; the commander's plans for the Panda: median 8 s/rad over 30–75°)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
@@ -576,6 +578,9 @@ class TouchPlanner:
                               n_unreachable=int(m - excluded.sum()), **base)
         # expected touch: contact after the standoff, the same back (tactile_common.touch_geometry)
         time_s = MotionModel.from_params(p).touch_time_s(sol.travel_m, float(p["standoff_m"]))
+        if tilted is not None:  # a tilted finger turns twice (there and back) about its tip
+            tilt_rad = np.arccos(np.clip(np.nan_to_num(tilted.axis_xyz[:, 2], nan=1.0), -1.0, 1.0))
+            time_s = time_s + 2.0 * float(p["tilt_turn_s_per_rad"]) * tilt_rad
         ctx = SelectionContext(xyz=target, variance_m2=cands.variance_m2, cost=sol.cost, time_s=time_s,
                                reachable=reachable, tip_xyz=tip, travel_m=sol.travel_m,
                                approach_m=2.0 * float(p["standoff_m"]))
