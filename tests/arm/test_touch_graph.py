@@ -124,3 +124,64 @@ def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_mi
     # Stopped at the object (the path is 0.20 m long), then backed off (~standoff). At path speed,
     # detection + messaging latency on a loaded machine lets the tip go a few mm past the onset.
     assert float(v3["travel_m"]) < 0.10 - RADIUS_M - TIP_RADIUS_M + 0.02 + STANDOFF_M + 0.01
+
+
+def test_a_tilted_touch_turns_the_finger_at_its_entry_and_ends_there_vertical(ros_graph, tmp_path):
+    """A path whose poses carry a tilted finger axis (tactile_common.finger_axis): the finger turns at the
+    entry point, goes in along its axis, touches the true surface tilted (the driver reads the contact in
+    the tilted tip frame), and comes back to the entry with the finger vertical."""
+    from tactile_common.finger_axis import finger_frame
+    from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix, xyzw
+
+    g = ros_graph
+    link = str(tmp_path / "sensor")
+    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
+    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
+    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    g.start("sim", ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
+                    "-p", f"sensor_link_path:={link}", "-p", "real_time_factor:=2.0", "-p", "mode:=3d",
+                    "-p", "object:=sphere"])
+    g.start("driver", ["tactile_sensor", "--ros-args", "--params-file",
+                       str(ROOT / "src/tactile_driver/config/tactile_sensor.yaml"),
+                       "-p", f"port:={link}", "-p", "use_sim_time:=true", "-p", "layout_file:=taxels_hemisphere.yaml"])
+    g.start("arm", ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
+                    "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "move_to_start:=false",
+                    "-p", "watchdog_timeout_s:=2.0"])
+    goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
+    path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)
+    g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count()
+               and contacts.publishers >= 2 and done.publishers, 30, "graph up (driver calibrating)")
+    # The 3D sphere (radius 5 cm, centre (0.5, 0, 0.05)) on its equator facing +y; the finger tilted 45 deg
+    # towards +y (the rod leaves the side it faces; the hemisphere of taxels faces the surface).
+    n = np.array([0.0, 1.0, 0.0])
+    centre = np.array([0.5, 0.0, 0.05])
+    candidate = centre + 0.05 * n
+    pre = candidate + (STANDOFF_M + TIP_RADIUS_M) * n
+    a = np.array([0.0, math.sin(math.pi / 4), math.cos(math.pi / 4)])
+    entry = pre + 0.03 * a
+    goal, path = goal_and_path(pre, -n, [[0.50, 0.10, 0.30], entry, entry, pre], 5_000_000_000)
+    for ps, axis in zip(path.poses, ([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], a, a)):
+        o = ps.pose.orientation
+        o.x, o.y, o.z, o.w = map(float, matrix_to_quaternion(finger_frame(-n, axis)))
+    goal_pub.publish(goal)
+    path_pub.publish(path)
+    g.wait_for(lambda: done, 120, "touch_done")
+    v = done_values(done[0])
+    assert done[0].message == "contact", v
+    g.wait_for(lambda: contacts, 10, "the contact")
+    p = fields.xyz(from_pointcloud2(contacts[0]))[0]
+    assert abs(np.linalg.norm(p - centre) - 0.05) < 0.002 and np.linalg.norm(p - candidate) < 0.005
+
+    def axis_of(msg):
+        return quaternion_to_matrix(xyzw(msg.pose.orientation))[:, 2]
+
+    def tip_of(msg):
+        return np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
+
+    # tilted as asked where it touched: the poses within 2 mm of the pre-touch point
+    near_pre = [axis_of(m) for m in poses if np.linalg.norm(tip_of(m) - pre) < 0.002]
+    assert near_pre and max(math.acos(np.clip(z @ a, -1, 1)) for z in near_pre) < 0.1
+    # ... and back at the entry, vertical (the report's end is the entry point)
+    np.testing.assert_allclose([float(x) for x in v["end_xyz_m"].split(",")], entry, atol=1e-6)
+    g.wait_for(lambda: np.linalg.norm(tip_of(poses[-1]) - entry) < 2e-3 and axis_of(poses[-1])[2] > math.cos(0.1),
+               10, "the finger vertical at the entry point")
