@@ -147,3 +147,23 @@ def test_the_planner_tilts_the_finger_only_for_what_the_vertical_one_cannot_touc
         rod = seg[:, None, :] + np.arange(R_TIP, LENGTH, 0.002)[None, :, None] * np.array([0, 0, 1.0])
         assert mushroom_sdf(rod.reshape(-1, 3)).min() > 0
     assert chosen == {0, 1}
+
+
+def test_the_contact_falls_on_the_sensing_side_of_the_tilted_tip(graph):
+    """The skin covers the tip's far side from the flange and a band above its equator: the contact, at −n
+    from the centre, must make n · a ≥ min_normal_z (for a vertical finger: the "facing down" rule)."""
+    target, normal = CASES["deck underside"]
+    pre = np.atleast_2d(target) + (R_TIP + STANDOFF) * np.atleast_2d(normal)
+    contact = np.atleast_2d(target) + R_TIP * np.atleast_2d(normal)
+    n = np.atleast_2d(normal).astype(float)
+
+    def entries(max_tilt, floor):
+        return tilted_entries(graph, pre, contact, n, R_TIP, TOUCH_NEED, PATH_NEED, max_tilt,
+                              TiltSettings(min_flange_z_m=0.0), floor)
+
+    e = entries(np.pi / 2, -0.2)
+    assert e.ok[0] and n[0] @ e.axis_xyz[0] >= -0.2  # only a nearly level finger senses a ceiling
+    assert not entries(5 * np.pi / 12, -0.2).ok[0]  # at 75 deg the ceiling would touch the unsensed top
+    # a side under the deck faces sideways: a tilt away from it keeps the contact on the skin
+    _, _, side = entries_for(graph, *CASES["pillar side under the deck"])
+    assert side.ok[0] and CASES["pillar side under the deck"][1] @ side.axis_xyz[0] > 0

@@ -358,7 +358,8 @@ class TouchPlanner:
                                  tip_radius_m, float(p["shaft_radius_m"]) + float(p["shaft_gap_m"]),
                                  float(p["shaft_radius_m"]) + skin, tilt,
                                  replace(TiltSettings(), insert_max_m=float(p["tilt_insert_max_m"]),
-                                         min_flange_z_m=float(p["tilt_min_flange_z_m"])))
+                                         min_flange_z_m=float(p["tilt_min_flange_z_m"])),
+                                 float(p["min_normal_z"]))
             out.axis_xyz[ask], out.entry_xyz[ask], out.insert_m[ask] = got.axis_xyz, got.entry_xyz, got.insert_m
         return out
 

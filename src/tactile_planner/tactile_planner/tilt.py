@@ -16,7 +16,8 @@ The insertion sweeps the rod along one line only: the rod is clear during it whe
 graph (:class:`~tactile_planner.graph.FreeSpaceGraph`):
 
 - approach: the rod along ``a`` above the tip centres from p to the expected contact keeps ``touch_need_m``
-  (the rod's radius + its gap at the touch) — as the vertical check;
+  (the rod's radius + its gap at the touch) — as the vertical check; and the contact falls on the skin's
+  sensing side, n · a ≥ ``min_normal_axis`` (for a = +z the planner's "facing down" rule);
 - insertion: the tip line p → E keeps the graph's margin (from the estimated surface); the rod line from p along ``a`` keeps
   ``path_need_m`` (the rod's radius + the tip's skin clearance, as on graph paths) up to s + length;
 - entry: the vertical rod above E keeps ``path_need_m``; the turn: the rod keeps it on axes between +z
@@ -97,7 +98,7 @@ def turn_axes(axis_xyz: np.ndarray, step_rad: float) -> np.ndarray:
 
 def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray, normal_xyz: np.ndarray,
                    tip_radius_m: float, touch_need_m: float, path_need_m: float, max_tilt_rad: float,
-                   settings: TiltSettings = TiltSettings()) -> TiltedEntries:
+                   settings: TiltSettings = TiltSettings(), min_normal_axis: float = -1.0) -> TiltedEntries:
     """The first tilted entry that passes the checks (module docstring) for each candidate.
 
     Args:
@@ -107,6 +108,9 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
         tip_radius_m: the rod starts this far past the tip centre.
         touch_need_m, path_need_m: clearance the rod keeps at the touch / on the way in.
         max_tilt_rad: tilts above it are not tried.
+        min_normal_axis: the sensed side: n · a ≥ this (the planner's ``min_normal_z`` for the vertical
+            finger, a = +z): the contact, at −n from the tip centre, must fall on the skin's taxels,
+            which cover the tip's far side from the flange and a band above its equator.
     """
     s = settings
     p = np.asarray(pretouch_xyz, float).reshape(-1, 3)
@@ -133,6 +137,7 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
         seg_ra = np.repeat(seg, A, axis=0).reshape(-1, 3)
         ok_app = (graph.rod_clearance_m(seg_ra, tip_radius_m, s.rod_step_m, np.repeat(ax, len(seg_t), axis=0))
                   .reshape(R * A, len(seg_t)).min(axis=1) >= touch_need_m)
+        ok_app &= (np.repeat(np.asarray(normal_xyz, float)[todo], A, axis=0) * ax).sum(axis=1) >= min_normal_axis
         # the insertion: the rod's line from p, its clearance up to each insertion + L (cumulative minimum)
         t_line = tip_radius_m + np.arange(0.0, steps[-1] + L - tip_radius_m + 1e-12, s.rod_step_m)
         line = pa[:, None, :] + t_line[None, :, None] * ax[:, None, :]
