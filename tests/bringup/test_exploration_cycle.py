@@ -14,10 +14,11 @@ class FakeRun:
     def __init__(self, touches=3):
         self.budget, self.touches, self.travel, self.written = touches, [], [], None
 
-    def add_touch(self, goal, observation, travel_m, time_s, decision_ms, path_xyz=None):
+    def add_touch(self, goal, observation, travel_m, time_s, decision_ms, path_xyz=None, path_axes_xyz=None):
         """A record as RunRecorder's: ``contact`` None for a miss (the observation MISS)."""
         self.touches.append({"index": len(self.touches), "contact": None if observation is MISS else observation,
-                             "travel_m": travel_m, "decision_ms": decision_ms})
+                             "travel_m": travel_m, "decision_ms": decision_ms, "path": path_xyz,
+                             "path_axes": path_axes_xyz})
         return {"index": len(self.touches) - 1}
 
     def add_travel(self, travel_m, time_s):
@@ -337,3 +338,16 @@ def test_an_answer_without_its_target_stops_the_history_rather_than_sending_a_wr
 def test_a_malformed_history_is_a_clear_error(text):
     with pytest.raises(ValueError, match="visited_xyz_m must be three finite numbers"):
         PlanRequest.from_values({"request_id": "1", "visited_xyz_m": text})
+
+
+def test_a_tilted_paths_axes_reach_the_touchs_record_and_a_vertical_ones_do_not():
+    r = Rig(touches=2)
+    r.cycle.on_tip(START)
+    path = np.array([START, [0.4, 0.05, 0.1], [0.4, 0.05, 0.1], [0.42, 0.05, 0.08]])
+    tilted = np.array([[0, 0, 1.0], [0, 0, 1.0], [0.7071, 0, 0.7071], [0.7071, 0, 0.7071]])
+    for axes in (tilted, np.tile([0.0, 0.0, 1.0], (4, 1))):
+        r.cycle.on_path(r.sent[-1].request_id, path, axes)
+        r.touch(obs_ns=len(r.run.touches) + 1)
+    np.testing.assert_array_equal(r.run.touches[0]["path_axes"], tilted)
+    np.testing.assert_array_equal(r.run.touches[1]["path"], path)
+    assert r.run.touches[1]["path_axes"] is None

@@ -116,7 +116,7 @@ class ExplorationCycle:
         self._t_sent = self._t_phase
         self._reissue_at_s = 0.0  # BACKING_OFF: when the aborted touch is re-issued
         self._goals: dict[int, Any] = {}
-        self._paths: dict[int, np.ndarray] = {}
+        self._paths: dict[int, tuple] = {}  # goal stamp -> (path (K, 3), finger axes (K, 3) or None)
         self._decision_ms: dict[int, float] = {}
         self._observations: dict[int, np.ndarray] = {}
         # The planner's memory, kept here and sent with every request (PlanRequest): the targets of the
@@ -160,9 +160,13 @@ class ExplorationCycle:
         planner that answers an old request again must not rewrite what was touched)."""
         self._goals.setdefault(int(stamp_ns), goal)
 
-    def on_path(self, stamp_ns: int, path_xyz: np.ndarray) -> None:
-        """The planned free-space path of a goal (world, (K, 3)): drawn in the figure. The first is kept."""
-        self._paths.setdefault(int(stamp_ns), np.asarray(path_xyz, dtype=float).reshape(-1, 3))
+    def on_path(self, stamp_ns: int, path_xyz: np.ndarray, axes_xyz: Optional[np.ndarray] = None) -> None:
+        """The planned free-space path of a goal (world, (K, 3)) and its finger axes ((K, 3), optional;
+        kept only for a tilted finger): drawn in the figure, the rod checked along it. The first is kept."""
+        axes = None if axes_xyz is None else np.asarray(axes_xyz, dtype=float).reshape(-1, 3)
+        if axes is not None and np.allclose(axes, [0.0, 0.0, 1.0]):
+            axes = None
+        self._paths.setdefault(int(stamp_ns), (np.asarray(path_xyz, dtype=float).reshape(-1, 3), axes))
 
     def on_observation(self, stamp_ns: int, point: np.ndarray) -> None:
         self._observations[int(stamp_ns)] = point
@@ -240,11 +244,12 @@ class ExplorationCycle:
             extra["slide"] = slide
         self.report = None
         self.retries = self.unreachable_in_row = self.aborts_in_row = 0
+        path, axes = self._paths.pop(report.goal_stamp_ns, (None, None))
         record = self.run.add_touch(goal=self._goals.pop(report.goal_stamp_ns, None),
                                     observation=self._observations.pop(obs_ns), travel_m=report.travel_m,
                                     time_s=report.duration_s,
                                     decision_ms=self._decision_ms.pop(report.goal_stamp_ns, float("nan")),
-                                    path_xyz=self._paths.pop(report.goal_stamp_ns, None), **extra)
+                                    path_xyz=path, path_axes_xyz=axes, **extra)
         self.log.info(self.run.progress_line(record))
         self.last_obs_stamp_ns = obs_ns
         reason = self.run.stop_reason()

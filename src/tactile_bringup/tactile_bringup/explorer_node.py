@@ -38,7 +38,7 @@ from tactile_common.observations_file import read_observations
 from tactile_common.params import declare_parameters
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import stamp_ns
-from tactile_driver.arm_msgs import path_xyz
+from tactile_driver.arm_msgs import path_axes, path_xyz
 
 from .experiment import Experiment
 from .exploration_cycle import CycleConfig, ExplorationCycle
@@ -118,7 +118,7 @@ class ExplorerNode(Node):
         self.cycle.on_goal(stamp_ns(msg.header.stamp), msg)
 
     def on_path(self, msg: PathMsg) -> None:
-        self.cycle.on_path(stamp_ns(msg.header.stamp), path_xyz(msg))
+        self.cycle.on_path(stamp_ns(msg.header.stamp), path_xyz(msg), path_axes(msg))
 
     def on_planner_status(self, msg: DiagnosticStatus) -> None:
         self._event(self.cycle.on_answer, answer_from_msg, msg, "planner status")

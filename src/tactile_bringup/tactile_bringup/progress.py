@@ -224,9 +224,10 @@ class RunRecorder:
         self.time_s += time_s
 
     def add_touch(self, goal, observation, travel_m: float, time_s: float, decision_ms: float,
-                  path_xyz=None, slide=None) -> dict:
+                  path_xyz=None, slide=None, path_axes_xyz=None) -> dict:
         """Record a finished touch: its goal pose message and its observation point
-        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure).
+        (``path_xyz`` (K, 3), optional: the planned free-space path, for the figure; ``path_axes_xyz``
+        (K, 3): its finger axes, a tilted touch's).
         ``slide`` (a :class:`tactile_bringup.slide_stream.GraphSlide`): the estimate takes its
         whole stream in order, ``observation`` (its last contact) last."""
         from .slide_stream import free_path
@@ -245,7 +246,8 @@ class RunRecorder:
             target = np.array([p.x, p.y, p.z]) + self.standoff_m * quaternion_x_axis(xyzw(goal.pose.orientation))
         observe(self.estimator, point, normal, contact)
         record = touch_record(len(self.touches), target, contact, point, normal, self.travel_m, self.time_s,
-                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz, slide=slide)
+                              decision_ms, self.estimator, self.evaluator, path_xyz=path_xyz, slide=slide,
+                              path_axes_xyz=path_axes_xyz)
         self.touches.append(record)
         return record
 
