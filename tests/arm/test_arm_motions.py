@@ -9,15 +9,15 @@ scipy's spline of the trajectory.
 import warnings
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
 from tactile_driver.arm_motions import APPROACH_BOX_INSET_M, ArmMotions, path_point_before, timed_start_ns
 from tactile_driver.commander_api import CommanderConfig
-from tactile_driver.kinematics import default_urdf_path
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError, plan_tip_path
+
+from finger_axis_helpers import full_model, full_tip as _full_tip, axis as _axis, angle as _angle
 
 
 @pytest.fixture(scope="module")
@@ -127,41 +127,17 @@ def test_an_approach_from_a_pretouch_point_the_ik_put_a_hair_below_the_floor(mot
 
 
 # -- a tilted finger ---------------------------------------------------------------------------------------
-OFFSET_M = 0.16  # CommanderConfig.tip_offset_m
 
 
 @pytest.fixture(scope="module")
 def full():
-    model = pin.buildModelFromUrdf(default_urdf_path())
-    return model, model.createData()
+    return full_model()
 
 
 @pytest.fixture(scope="module")
 def q_low(motions):
     """Joints with the tip at (0.5, 0, 0.1), finger vertical."""
     return motions.tip_path(np.array([[0.5, 0.0, 0.1]]), motions.home).positions_rad[-1]
-
-
-def _full_tip(full, q7):
-    """Tip centre and fingertip z-axis from the full model (link8 placement + OFFSET_M along its z)."""
-    model, data = full
-    q = np.zeros(model.nq)
-    q[:7] = q7
-    pin.framesForwardKinematics(model, data, q)
-    m = data.oMf[model.getFrameId("panda_link8")]
-    return m.translation + OFFSET_M * m.rotation[:, 2], -m.rotation[:, 2]
-
-
-def _axis(tilt_deg, azimuth_deg):
-    """Unit axis tilted ``tilt_deg`` from world +z towards azimuth ``azimuth_deg`` (from +x towards +y)."""
-    t, f = np.radians(tilt_deg), np.radians(azimuth_deg)
-    return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
-
-
-def _angle(u, v):
-    """Angle between two vectors (rad), from the normalised dot product."""
-    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 def test_a_path_from_a_vertical_finger_is_planned_as_before(motions):

@@ -10,7 +10,9 @@ import pinocchio as pin
 import pytest
 
 from tactile_driver.ik import IKSettings, NoSolutionFound, axis_error_rad, solve_ik
-from tactile_driver.kinematics import ArmModel, KinematicsError, default_urdf_path, home_configuration
+from tactile_driver.kinematics import ArmModel, KinematicsError, home_configuration
+
+from finger_axis_helpers import full_model, axis as _axis, angle as _angle
 
 OFFSET_M = 0.16
 
@@ -22,8 +24,7 @@ def arm():
 
 @pytest.fixture(scope="module")
 def full():
-    model = pin.buildModelFromUrdf(default_urdf_path())
-    return model, model.createData()
+    return full_model()
 
 
 def _random_q(arm, rng, n):
@@ -103,18 +104,6 @@ def test_bad_model_parameters_give_clear_errors():
 
 
 HOME = np.array([0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854])  # CommanderConfig.home_rad: tip (0.5, 0, 0.35)
-
-
-def _axis(tilt_deg, azimuth_deg):
-    """Unit axis tilted ``tilt_deg`` from world +z towards azimuth ``azimuth_deg`` (from +x towards +y)."""
-    t, f = np.radians(tilt_deg), np.radians(azimuth_deg)
-    return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
-
-
-def _angle(u, v):
-    """Angle between two vectors (rad), from the normalised dot product."""
-    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 # -- the IK as it was before axes existed (verbatim), the reference of the vertical default ----------------

@@ -32,22 +32,29 @@ STANDOFF_M, TIP_RADIUS_M = 0.01, 0.010
 WAYPOINT_STEP_M = 0.01  # arm_commander.yaml: the path's waypoints
 
 
-def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_miss(ros_graph, tmp_path):
-    g = ros_graph
-    link = str(tmp_path / "sensor")
+def start_rig(g, link: str, mode: str = "2d"):
+    """sim_rig (the 2D circle, or in 3D the sphere with the hemisphere of taxels), tactile_sensor and
+    arm_commander; the test's collectors and goal/path publishers."""
     done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
     contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
     poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
+    sim_3d = ["-p", "mode:=3d", "-p", "object:=sphere"] if mode == "3d" else []
+    layout_3d = ["-p", "layout_file:=taxels_hemisphere.yaml"] if mode == "3d" else []
     g.start("sim", ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
-                    "-p", f"sensor_link_path:={link}", "-p", "real_time_factor:=2.0"])
+                    "-p", f"sensor_link_path:={link}", "-p", "real_time_factor:=2.0", *sim_3d])
     g.start("driver", ["tactile_sensor", "--ros-args", "--params-file",
                        str(ROOT / "src/tactile_driver/config/tactile_sensor.yaml"),
-                       "-p", f"port:={link}", "-p", "use_sim_time:=true"])
+                       "-p", f"port:={link}", "-p", "use_sim_time:=true", *layout_3d])
     g.start("arm", ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
                     "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "move_to_start:=false",
                     "-p", "watchdog_timeout_s:=2.0"])  # a loaded shared test machine stalls processes
-    goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
-    path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)
+    return (done, contacts, poses, g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS),
+            g.node.create_publisher(Path, topics.PATH, qos.EVENTS))
+
+
+def test_scripted_touches_give_a_contact_on_the_true_surface_and_a_free_space_miss(ros_graph, tmp_path):
+    g = ros_graph
+    done, contacts, poses, goal_pub, path_pub = start_rig(g, str(tmp_path / "sensor"))
     g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count()
                and contacts.publishers >= 2 and done.publishers,  # driver and commander both publish contacts
                30, "graph up (driver calibrating)")
@@ -134,21 +141,7 @@ def test_a_tilted_touch_turns_the_finger_at_its_entry_and_ends_there_vertical(ro
     from tactile_common.rotations import matrix_to_quaternion, quaternion_to_matrix, xyzw
 
     g = ros_graph
-    link = str(tmp_path / "sensor")
-    done = g.collect(topics.TOUCH_DONE, DiagnosticStatus, qos.EVENTS)
-    contacts = g.collect(topics.CONTACTS, PointCloud2, qos.EVENTS)
-    poses = g.collect(topics.FINGERTIP_POSE, PoseStamped, qos.SENSOR)
-    g.start("sim", ["sim_rig", "--ros-args", "--params-file", str(ROOT / "src/tactile_sim/config/sim_rig.yaml"),
-                    "-p", f"sensor_link_path:={link}", "-p", "real_time_factor:=2.0", "-p", "mode:=3d",
-                    "-p", "object:=sphere"])
-    g.start("driver", ["tactile_sensor", "--ros-args", "--params-file",
-                       str(ROOT / "src/tactile_driver/config/tactile_sensor.yaml"),
-                       "-p", f"port:={link}", "-p", "use_sim_time:=true", "-p", "layout_file:=taxels_hemisphere.yaml"])
-    g.start("arm", ["arm_commander", "--ros-args", "--params-file", str(ROOT / "src/tactile_driver/config/arm_commander.yaml"),
-                    "-p", "use_sim_time:=true", "-p", "dwell_s:=0.1", "-p", "move_to_start:=false",
-                    "-p", "watchdog_timeout_s:=2.0"])
-    goal_pub = g.node.create_publisher(PoseStamped, topics.GOAL, qos.EVENTS)
-    path_pub = g.node.create_publisher(Path, topics.PATH, qos.EVENTS)
+    done, contacts, poses, goal_pub, path_pub = start_rig(g, str(tmp_path / "sensor"), mode="3d")
     g.wait_for(lambda: len(poses) > 50 and goal_pub.get_subscription_count() and path_pub.get_subscription_count()
                and contacts.publishers >= 2 and done.publishers, 30, "graph up (driver calibrating)")
     # The 3D sphere (radius 5 cm, centre (0.5, 0, 0.05)) on its equator facing +y; the finger tilted 45 deg

@@ -6,14 +6,15 @@ timed by the joint limits, waypoint axes against the full model's FK."""
 import warnings
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
 from tactile_driver.ik import IKSettings, solve_ik
-from tactile_driver.kinematics import ArmModel, default_urdf_path
+from tactile_driver.kinematics import ArmModel
 from tactile_driver.trajectory import (MotionLimits, PathNotFeasible, TrajectoryError, densify, densify_with_axes,
                                        ik_path, plan_tip_path, sample_hermite, slerp_axes, time_parameterize)
+
+from finger_axis_helpers import full_model, full_tip as _full_tip, axis as _axis, angle as _angle
 
 Q_HOME = np.array([0.0, -0.1897, 0.0, -2.079, 0.0, 1.8893, 0.7854])  # tip at (0.5, 0, 0.35)
 
@@ -99,35 +100,11 @@ def test_densify_counts_steps_robustly_at_whole_multiples():
 
 
 # -- finger axes ---------------------------------------------------------------------------------------------
-OFFSET_M = 0.16  # ArmModel's default tip offset
 
 
 @pytest.fixture(scope="module")
 def full():
-    model = pin.buildModelFromUrdf(default_urdf_path())
-    return model, model.createData()
-
-
-def _full_tip(full, q7):
-    """Tip centre and fingertip z-axis from the full model (link8 placement + OFFSET_M along its z)."""
-    model, data = full
-    q = np.zeros(model.nq)
-    q[:7] = q7
-    pin.framesForwardKinematics(model, data, q)
-    m = data.oMf[model.getFrameId("panda_link8")]
-    return m.translation + OFFSET_M * m.rotation[:, 2], -m.rotation[:, 2]
-
-
-def _axis(tilt_deg, azimuth_deg):
-    """Unit axis tilted ``tilt_deg`` from world +z towards azimuth ``azimuth_deg`` (from +x towards +y)."""
-    t, f = np.radians(tilt_deg), np.radians(azimuth_deg)
-    return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
-
-
-def _angle(u, v):
-    """Angle between two vectors (rad), from the normalised dot product."""
-    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+    return full_model()
 
 
 def test_a_path_without_axes_is_the_vertical_ik_per_waypoint(arm):
