@@ -144,3 +144,28 @@ def test_an_approach_refused_at_the_end_of_the_path_aborts_the_touch_where_the_a
     assert res.outcome == "aborted" and res.reason.startswith("approach:") and not res.contact, res
     assert np.linalg.norm(res.end_xyz - plan.pretouch_xyz) < 2e-4  # the path's end (IK tolerance)
     assert np.linalg.norm(rig.motions.model.fk(rig.q)[0] - plan.pretouch_xyz) < 2e-4  # the next touch starts there
+
+
+def test_a_tilted_poke_senses_the_sphere_and_ends_vertical_at_its_entry():
+    """A plan whose path ends tilted (tactile_planner.tilt's form): the rig turns the finger at the entry,
+    touches the 3D sphere (radius 5 cm, centre (0.5, 0, 0.05)) with it tilted, and comes back through the
+    path's joints to the entry, finger vertical; the way back is counted."""
+    from tactile_driver.ik import tilt_of
+
+    exp = Experiment(mode="3d", object_name="sphere", touches=1, seed=3)
+    rig = RigFinger(exp, make_object("sphere", mode="3d"))
+    centre, n = np.array([0.5, 0.0, 0.05]), np.array([0.0, 1.0, 0.0])
+    target = centre + 0.05 * n
+    pretouch = rig.geometry.pretouch_xyz(target, n)
+    a = np.array([0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
+    entry = pretouch + 0.03 * a
+    here = rig.motions.model.fk(rig.q)[0]
+    path = np.vstack([here, entry, entry, pretouch])
+    axes = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], a, a])
+    res = rig.poke(PlanResult("ok", "", 0, target, n, pretouch, path, path_axes_xyz=axes))
+    assert res.outcome == "contact", res
+    assert abs(np.linalg.norm(res.point_xyz - centre) - 0.05) < 1e-3 and np.linalg.norm(res.point_xyz - target) < 3e-3
+    np.testing.assert_array_equal(res.end_xyz, entry)
+    tip, R = rig.motions.model.fk(rig.q)
+    assert np.linalg.norm(tip - entry) < 2e-4 and tilt_of(R) <= rig.cfg.max_tilt_rad
+    assert res.untilt_m == pytest.approx(np.linalg.norm(pretouch - entry), abs=1e-3) and res.untilt_s > 0

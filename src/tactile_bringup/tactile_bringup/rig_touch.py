@@ -227,7 +227,7 @@ class RigFinger:
         self._run(traj)
         self.q = np.array(traj.positions_rad[-1], dtype=float)
         self._release(self.q)
-        return replace(result, end_xyz=m.model.fk(self.q)[0],
+        return replace(result, end_xyz=np.array(tail.entry_xyz, dtype=float),  # nominal, as the commander reports
                        untilt_m=float(np.linalg.norm(tail.entry_xyz - here)), untilt_s=float(traj.times_s[-1]))
 
     def _poke(self, plan: Any):

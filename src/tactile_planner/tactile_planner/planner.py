@@ -336,8 +336,8 @@ class TouchPlanner:
         need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
         return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
 
-    def _tilted_entries(self, graph, why: dict, valid: np.ndarray, hard: np.ndarray, pretouch: np.ndarray,
-                        target: np.ndarray, normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
+    def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
+                        normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
         """Tilted entries (tactile_planner.tilt) for the candidates only the vertical finger rules out (its rod
         or a surface facing down); None when the tilt is off (``tilt_max_rad`` 0, 2D, slides, no shaft)."""
         p = self.params
@@ -508,7 +508,7 @@ class TouchPlanner:
             why[SHAFT_REASON] = blocked
             hard |= blocked
             excluded |= blocked
-        tilted = self._tilted_entries(graph, why, valid, hard, pretouch, target, normal, geometry.tip_radius_m)
+        tilted = self._tilted_entries(graph, why, valid, pretouch, target, normal, geometry.tip_radius_m)
         if tilted is not None and tilted.ok.any():  # these are touched with the finger tilted
             for k in (SHAFT_REASON, "facing down"):
                 if k in why:
