@@ -173,9 +173,11 @@ class ArmMotions:
             raise TrajectoryError(f"retrace to waypoint {to_index} of a plan of {len(qs)}")
         j = to_index + int(np.argmin(np.linalg.norm(qs[to_index:] - q0, axis=1)))
         back = np.vstack([q0[None], qs[to_index: j + 1][::-1]])
-        tip = np.array([self.model.fk(q)[0] for q in back])
+        fk = [self.model.fk(q) for q in back]
+        tip = np.array([p for p, _ in fk])
         self.box.check(tip[1:], slack_m=self.ik.tol_m)
-        return time_parameterize(back, tip, self._limits(speed_mps))
+        axes = np.array([R[:, 2] for _, R in fk])  # timed as the way in: the turn by the flange's arc
+        return time_parameterize(back, tip, self._limits(speed_mps), axes, self.model.tip_offset_m)
 
     def joint_move(self, q_start: np.ndarray, q_goal: np.ndarray, speed_mps: float, step_m: float) -> TimedTrajectory:
         """A joint-space straight line ``q_start`` → ``q_goal`` (exactly) in equal joint steps, as many as

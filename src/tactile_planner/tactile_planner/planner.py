@@ -110,8 +110,8 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                           "(where it turns) to the pre-touch point", {"gt": 0.0}),
     "tilt_min_flange_z_m": (0.10, "3D: a tilted finger keeps its flange (the rod's far end) at least this high "
                             "above the table at the pre-touch point: the wrist is wider than the rod", {"ge": 0.0}),
-    "tilt_turn_s_per_rad": (8.0, "3D: robot time a tilted finger takes to turn, per radian of tilt (each touch turns "
-                            "there and back; the commander's plans for the Panda: median 8 s/rad over 30–75°)", {"ge": 0.0}),
+    "tilt_turn_s_per_rad": (6.0, "3D: robot time a tilted finger takes to turn, per radian of tilt (each touch turns "
+                            "there and back; the commander's plans for the Panda: 4.8–8 s/rad over 30–75°)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
