@@ -9,6 +9,7 @@ scipy's spline of the trajectory.
 import warnings
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
@@ -17,7 +18,7 @@ from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError, plan_tip_path
 
-from finger_axis_helpers import full_model, full_tip as _full_tip, axis as _axis, angle as _angle
+from finger_axis_helpers import OFFSET_M, full_model, full_tip as _full_tip, axis as _axis, angle as _angle
 
 
 @pytest.fixture(scope="module")
@@ -173,6 +174,22 @@ def test_a_rotation_in_place_keeps_the_tip_and_respects_the_joint_limits(motions
     travel = np.abs(np.diff(traj.positions_rad, axis=0)).sum(axis=0)
     assert traj.duration_s >= np.max(travel / lim.velocity_rad_s)
     assert np.all(np.diff(traj.times_s) > 0) and np.all(np.isfinite(traj.times_s))
+    # The flange (link8, full model) moves at most at the tip speed (the turn's path parameter is its arc).
+    # A sideways turn (the wrist's easy direction) takes no more than 3x the longer of the flange's arc at
+    # that speed and the joints' travel at their limit, + 2 s: 60 deg took 7.7 s when an in-place turn was
+    # timed by a 1 µm floor (over this bound), 4.5 s now. (Towards the robot the joints' back and forth set it.)
+    model, data = full
+    flange = []
+    for q7 in spline(t):
+        q = np.zeros(model.nq)
+        q[:7] = q7
+        pin.framesForwardKinematics(model, data, q)
+        flange.append(data.oMf[model.getFrameId("panda_link8")].translation.copy())
+    speed = np.linalg.norm(np.diff(flange, axis=0), axis=1) / np.diff(t)
+    assert speed.max() <= lim.tip_speed_mps * 1.05
+    arc_m = OFFSET_M * np.radians(tilt_deg)
+    if azimuth_deg == 90:
+        assert traj.duration_s <= 3.0 * max(arc_m / lim.tip_speed_mps, np.max(travel / lim.velocity_rad_s)) + 2.0
 
 
 @pytest.mark.parametrize("bad", [[np.nan, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0], "up"])
