@@ -17,6 +17,10 @@ has judged the frames up to the stop, retracts to where the approach began
 what it would have without the outage. Any other abort (e-stop, stale joint
 states, time-out) ends the touch as ``aborted``. In dry-run mode the three motions are planned and published
 for inspection only and the touch ends as ``aborted`` (reason ``dry_run``).
+A tilted touch (``TouchRequest.tail``, tactile_common.finger_axis) plans its path with the finger
+axes, and whatever its outcome (not ``unreachable``, not under the e-stop) ends with ``untilt``: back
+through the path's own planned joints to its last vertical waypoint, the entry point
+(:meth:`ArmCommander.retrace`), so that every touch ends with the finger vertical.
 No message handling here: the node passes the commander and two publish callbacks.
 
 A slide request (``slide_length_m`` set; tactile_common.slide_goal):
