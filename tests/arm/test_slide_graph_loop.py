@@ -374,7 +374,7 @@ class ScriptedArm:
     def approach_depth_m(self, start_xyz, direction_xyz, depth_m, min_depth_m=0.0):
         return depth_m  # the box never shortens an approach here
 
-    def plan(self, path, q_start=None, speed_mps=None, step_m=None):
+    def plan(self, path, q_start=None, speed_mps=None, step_m=None, axes_xyz=None):
         self.calls.append(("plan", np.asarray(path).reshape(-1, 3)[-1].copy()))
         return _traj(0.1)
 
@@ -391,7 +391,7 @@ class ScriptedArm:
                                      contact_stamp_ns=42 if contact is not None else 0, extra=extra or {})
         return True
 
-    def follow_path(self, path):
+    def follow_path(self, path, axes_xyz=None):
         return self._verb("follow_path", 0.3)
 
     def approach(self, direction, depth):
