@@ -24,6 +24,8 @@ import numpy as np
 from tactile_common.rotations import quaternion_to_matrix
 
 EZ = np.array([0.0, 0.0, 1.0])
+#: Axes closer than this (rad) are the same axis.
+SAME_AXIS_RAD = 1e-6
 
 
 def finger_frame(approach_xyz: np.ndarray, axis_xyz: np.ndarray) -> np.ndarray:
@@ -46,6 +48,38 @@ def finger_frame(approach_xyz: np.ndarray, axis_xyz: np.ndarray) -> np.ndarray:
             break
     x = x / nx
     return np.stack([x, np.cross(z, x), z], axis=1)
+
+
+def axis_angles(a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
+    """(M,) angle (rad, in [0, π]) between unit rows of ``a0`` and ``a1`` (M, 3): atan2(|a0 × a1|, a0 · a1)."""
+    return np.arctan2(np.linalg.norm(np.cross(a0, a1), axis=-1), np.einsum("...i,...i->...", a0, a1))
+
+
+def slerp_axes(a0: np.ndarray, a1: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """Great-circle interpolation of unit vectors (M, 3), row-wise, at fractions ``frac`` (M,) in [0, 1].
+
+    a(t) = cos(tθ) a0 + sin(tθ) u, θ = angle(a0, a1), u the unit component of a1 orthogonal to
+    a0: a(0) = a0, a(1) = a1, and the angle from a0 grows as tθ. Identical axes (θ below
+    ``SAME_AXIS_RAD``) give a0. Opposite axes have no unique great circle: u is then a0 × e
+    normalised, e the world axis least aligned with a0 (the same choice every time).
+    """
+    a0 = np.atleast_2d(np.asarray(a0, dtype=float))
+    a1 = np.atleast_2d(np.asarray(a1, dtype=float))
+    t = np.asarray(frac, dtype=float).reshape(-1)
+    theta = axis_angles(a0, a1)
+    ortho = a1 - np.einsum("ij,ij->i", a0, a1)[:, None] * a0
+    n_ortho = np.linalg.norm(ortho, axis=1)
+    # Nearly opposite (sin θ tiny, cos θ < 0): the orthogonal part is noise; pick a fixed perpendicular.
+    opposite = (n_ortho < 1e-9) & (theta > np.pi / 2)
+    e = np.eye(3)[np.argmin(np.abs(a0), axis=1)]
+    perp = np.cross(a0, e)
+    perp /= np.linalg.norm(perp, axis=1)[:, None]
+    u = np.where(opposite[:, None], perp, ortho / np.maximum(n_ortho, 1e-300)[:, None])
+    ang = t * theta
+    out = np.cos(ang)[:, None] * a0 + np.sin(ang)[:, None] * u
+    same = theta <= SAME_AXIS_RAD
+    out = np.where(same[:, None], a0, out)
+    return out / np.linalg.norm(out, axis=1)[:, None]
 
 
 def axes_from_quaternions(xyzw: np.ndarray) -> np.ndarray:

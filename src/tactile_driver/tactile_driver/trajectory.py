@@ -41,6 +41,7 @@ from typing import Optional
 
 import numpy as np
 
+from tactile_common.finger_axis import SAME_AXIS_RAD, axis_angles, slerp_axes
 from tactile_driver.ik import MIN_AXIS_NORM, IKSettings, NoSolutionFound, solve_ik
 from tactile_driver.kinematics import ArmModel
 
@@ -49,7 +50,7 @@ _LOCAL_ITERATIONS = 8
 #: Tip points closer than this are merged (IK residuals must not create micro-segments).
 MERGE_TOL_M = 2e-4
 #: ... unless their finger axes differ by more than this (rad): then the second is a rotation in place.
-MERGE_TOL_RAD = 1e-6
+MERGE_TOL_RAD = SAME_AXIS_RAD
 #: Default largest turn of the finger axis between two waypoints (rad), when axes are given. Near vertical
 #: a 0.1 rad turn took up to 0.33 rad of joint 5 (above the default max_joint_step_rad, 0.3); 0.05 rad halves it.
 MAX_AXIS_STEP_RAD = 0.05
@@ -189,38 +190,6 @@ def unit_axes(axes_xyz: np.ndarray, n_points: int) -> np.ndarray:
     if np.any(norm < MIN_AXIS_NORM):
         raise TrajectoryError(f"finger axis {int(np.argmax(norm < MIN_AXIS_NORM))} is zero: it has no direction")
     return a / norm[:, None]
-
-
-def axis_angles(a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
-    """(M,) angle (rad, in [0, π]) between unit rows of ``a0`` and ``a1`` (M, 3): atan2(|a0 × a1|, a0 · a1)."""
-    return np.arctan2(np.linalg.norm(np.cross(a0, a1), axis=-1), np.einsum("...i,...i->...", a0, a1))
-
-
-def slerp_axes(a0: np.ndarray, a1: np.ndarray, frac: np.ndarray) -> np.ndarray:
-    """Great-circle interpolation of unit vectors (M, 3), row-wise, at fractions ``frac`` (M,) in [0, 1].
-
-    a(t) = cos(tθ) a0 + sin(tθ) u, θ = angle(a0, a1), u the unit component of a1 orthogonal to
-    a0: a(0) = a0, a(1) = a1, and the angle from a0 grows as tθ. Identical axes (θ below
-    ``MERGE_TOL_RAD``) give a0. Opposite axes have no unique great circle: u is then a0 × e
-    normalised, e the world axis least aligned with a0 (the same choice every time).
-    """
-    a0 = np.atleast_2d(np.asarray(a0, dtype=float))
-    a1 = np.atleast_2d(np.asarray(a1, dtype=float))
-    t = np.asarray(frac, dtype=float).reshape(-1)
-    theta = axis_angles(a0, a1)
-    ortho = a1 - np.einsum("ij,ij->i", a0, a1)[:, None] * a0
-    n_ortho = np.linalg.norm(ortho, axis=1)
-    # Nearly opposite (sin θ tiny, cos θ < 0): the orthogonal part is noise; pick a fixed perpendicular.
-    opposite = (n_ortho < 1e-9) & (theta > np.pi / 2)
-    e = np.eye(3)[np.argmin(np.abs(a0), axis=1)]
-    perp = np.cross(a0, e)
-    perp /= np.linalg.norm(perp, axis=1)[:, None]
-    u = np.where(opposite[:, None], perp, ortho / np.maximum(n_ortho, 1e-300)[:, None])
-    ang = t * theta
-    out = np.cos(ang)[:, None] * a0 + np.sin(ang)[:, None] * u
-    same = theta <= MERGE_TOL_RAD
-    out = np.where(same[:, None], a0, out)
-    return out / np.linalg.norm(out, axis=1)[:, None]
 
 
 def densify_with_axes(path_xyz: np.ndarray, axes_xyz: np.ndarray, max_step_m: float,

@@ -20,6 +20,7 @@ from typing import Any, Mapping
 import numpy as np
 import scipy.sparse.csgraph as csg
 
+from tactile_common.finger_axis import EZ
 from tactile_common.touch_geometry import MotionModel, TouchGeometry
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
@@ -151,7 +152,6 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
 
 #: The reason a candidate is excluded when its approach would put the vertical rod into the estimate.
 SHAFT_REASON = "the finger's shaft would enter the estimate"
-_EZ = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass
@@ -187,7 +187,7 @@ class PlanResult:
     @property
     def finger_axis_xyz(self) -> np.ndarray:
         """The finger axis of the approach (unit, world): +z unless the path ends tilted."""
-        return self.path_axes_xyz[-1].copy() if len(self.path_axes_xyz) else _EZ.copy()
+        return self.path_axes_xyz[-1].copy() if len(self.path_axes_xyz) else EZ.copy()
 
     @property
     def ok(self) -> bool:
@@ -607,7 +607,7 @@ class TouchPlanner:
         tilt_msg = ""
         if tilted is not None and tilted.ok[idx]:  # at the entry: turn the finger, then insert it (tactile_planner.tilt)
             a = tilted.axis_xyz[idx]
-            axes = np.vstack([np.tile(_EZ, (len(pts), 1)), a, a])
+            axes = np.vstack([np.tile(EZ, (len(pts), 1)), a, a])
             pts = np.vstack([pts, travel_end[idx][None], pretouch[idx][None]])
             tilt_msg = (f"; finger tilted {np.degrees(np.arccos(np.clip(a[2], -1.0, 1.0))):.0f} deg, "
                         f"inserted {tilted.insert_m[idx]:.3f} m")

@@ -37,8 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_EZ = np.array([0.0, 0.0, 1.0])
-
+from tactile_common.finger_axis import EZ, slerp_axes
 
 @dataclass(frozen=True)
 class TiltedEntries:
@@ -88,12 +87,8 @@ def turn_axes(axis_xyz: np.ndarray, step_rad: float) -> np.ndarray:
     ang = np.arccos(np.clip(a[:, 2], -1.0, 1.0))
     t_count = max(int(np.ceil(float(ang.max(initial=0.0)) / step_rad)) - 1, 1)
     f = np.arange(1, t_count + 1) / (t_count + 1)  # (T,)
-    # slerp from +z: sin((1−f)θ)/sin θ · z + sin(fθ)/sin θ · a
-    sin_t = np.where(np.sin(ang) > 1e-9, np.sin(ang), 1.0)
-    w0 = np.sin((1.0 - f)[None, :] * ang[:, None]) / sin_t[:, None]
-    w1 = np.sin(f[None, :] * ang[:, None]) / sin_t[:, None]
-    out = w0[:, :, None] * _EZ + w1[:, :, None] * a[:, None, :]
-    return out / np.linalg.norm(out, axis=2, keepdims=True)
+    turns = slerp_axes(np.tile(EZ, (len(a) * t_count, 1)), np.repeat(a, t_count, axis=0), np.tile(f, len(a)))
+    return turns.reshape(len(a), t_count, 3)
 
 
 def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray, normal_xyz: np.ndarray,
