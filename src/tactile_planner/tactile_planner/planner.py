@@ -24,7 +24,8 @@ from tactile_common.finger_axis import EZ
 from tactile_common.touch_geometry import MotionModel, TouchGeometry
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
-from .maps import MapError, parse_variance_map
+from .foot import foot_probes
+from .maps import Candidates, MapError, parse_variance_map
 from .pocket import closer_pretouch, pocket_entries
 from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
@@ -74,6 +75,9 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "support_gap_m": (0.0, "3D: an estimate whose lowest inside node is more than this above the table floats "
                       "(an object on the table reaches it): probe under it first, on rings round its footprint "
                       "below it (tactile_planner.search.floating_base; 0 = off)", {"ge": 0.0}),
+    "foot_probe_gap_m": (0.0, "3D: a wall whose estimate ends more than this above the lowest probe height gets a "
+                         "horizontal probe at that height towards its line, beside the ordinary candidates (an "
+                         "object on the table reaches the table; tactile_planner.foot; 0 = off)", {"ge": 0.0}),
     "p_inside_max": (1.0, "also drop nodes with P(inside) = Φ(−μ/σ) above this (1 = off)", {"gt": 0.0, "le": 1.0}),
     "min_tip_z_m": (0.015, "3D: lowest tip-centre height (table + table margin + tip radius)"),
     "standoff_m": (0.01, "gap between the tip surface and the candidate at the pre-touch pose", {"gt": 0.0}),
@@ -152,6 +156,8 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
 
 #: The reason a candidate is excluded when its approach would put the vertical rod into the estimate.
 SHAFT_REASON = "the finger's shaft would enter the estimate"
+FOOT_PROBE_LIFT_M = 0.002  # a foot probe's height above the lowest tip height (clear of the graph's floor)
+FOOT_PROBE_SLACK_M = 0.001  # its approach ends this much farther out than the rod's radius and gap need
 
 
 @dataclass
@@ -308,7 +314,7 @@ class TouchPlanner:
             if floating is not None and (res := self._search_support(lattice, tip, excluded_targets, floating,
                                                                       min_z)) is not None:
                 return res
-        res = self._plan_on(lattice, cands, tip, excluded_targets, "")
+        res = self._plan_with_foot_probes(lattice, cands, tip, excluded_targets, min_z)
         if res.status in ("all_unreachable", "no_candidates") and q > 0:
             # The estimate's surface cannot be touched any more (every candidate blocked, excluded or
             # in a pocket of free space the tip cannot leave), yet the object is somewhere in the
@@ -317,6 +323,32 @@ class TouchPlanner:
                                     f"{res.status} on the estimate: {res.message}")
             if searched is not None and searched.ok:
                 return searched
+        return res
+
+    def _plan_with_foot_probes(self, lattice, cands, tip, excluded_targets, min_z: float) -> PlanResult:
+        """The ordinary decision, with the foot probes of the candidates' walls among the candidates
+        (``foot_probe_gap_m`` > 0, 3D; tactile_planner.foot): their approach ends with the rod its radius
+        and gap outside the wall's line, and the rod is checked down to the approach's end."""
+        p = self.params
+        gap = float(p["foot_probe_gap_m"])
+        found = None
+        if lattice.dim == 3 and gap > 0 and len(cands):
+            geometry = TouchGeometry.from_params(p)
+            rod_m = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
+            end_m = geometry.max_depth_m - geometry.tip_radius_m + rod_m + FOOT_PROBE_SLACK_M
+            found = foot_probes(lattice, cands, min_z + FOOT_PROBE_LIFT_M, gap, end_m)
+        if found is None:
+            return self._plan_on(lattice, cands, tip, excluded_targets, "")
+        probes, wall, z_b = found
+        m = len(cands)
+        both = Candidates(*(np.concatenate([getattr(cands, f), getattr(probes, f)])
+                            for f in ("xyz", "normal", "mean_m", "variance_m2")))
+        past = np.r_[np.zeros(m), np.full(len(probes), TouchGeometry.from_params(p).max_depth_m)]
+        res = self._plan_on(lattice, both, tip, excluded_targets, "", rod_past_contact_m=past)
+        if res.ok and res.index >= m:
+            k = res.index - m
+            res.message += (f"; a probe at the foot of the wall of candidate {int(wall[k])} (its estimate ends "
+                            f"{z_b[k]:.3f} m up)")
         return res
 
     def _shaft_graph_params(self, dim: int) -> tuple[float, float]:
@@ -433,9 +465,12 @@ class TouchPlanner:
                 return res
         return None
 
-    def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str) -> PlanResult:
+    def _plan_on(self, lattice, cands, tip, excluded_targets, searching: str,
+                 rod_past_contact_m: np.ndarray | None = None) -> PlanResult:
         """Choose among ``cands`` on ``lattice`` (the estimate's, or the search field's when
-        ``searching`` says why): exclusions, free-space graph, travel costs, strategy, path."""
+        ``searching`` says why): exclusions, free-space graph, travel costs, strategy, path.
+        ``rod_past_contact_m`` (per candidate, default 0): how far past the expected contact the
+        approach's rod check goes (a foot probe's: to the approach's end; these get no tilted entry)."""
         p = self.params
         dim = lattice.dim
         m = len(cands)
@@ -500,7 +535,10 @@ class TouchPlanner:
         shaft_ok = self._shaft_check(graph, geometry.tip_radius_m)
         if shaft_ok is not None:  # the rod above the tip on the approach, down to the expected contact
             t = np.linspace(0.0, 1.0, 6)[None, :, None]
-            seg = pretouch[:, None, :] + t * (target + geometry.tip_radius_m * normal - pretouch)[:, None, :]
+            end = target + geometry.tip_radius_m * normal
+            if rod_past_contact_m is not None:
+                end = end - rod_past_contact_m[:, None] * normal
+            seg = pretouch[:, None, :] + t * (end - pretouch)[:, None, :]
             ask = valid & ~hard  # the others are out already
             blocked = np.zeros(m, bool)
             if ask.any():
@@ -508,7 +546,8 @@ class TouchPlanner:
             why[SHAFT_REASON] = blocked
             hard |= blocked
             excluded |= blocked
-        tilted = self._tilted_entries(graph, why, valid, pretouch, target, normal, geometry.tip_radius_m)
+        tilt_ok = valid if rod_past_contact_m is None else valid & (rod_past_contact_m == 0)
+        tilted = self._tilted_entries(graph, why, tilt_ok, pretouch, target, normal, geometry.tip_radius_m)
         if tilted is not None and tilted.ok.any():  # these are touched with the finger tilted
             for k in (SHAFT_REASON, "facing down"):
                 if k in why:
