@@ -145,3 +145,13 @@ def test_under_an_overhanging_cap_the_rod_check_to_the_approach_end_refuses_the_
     contact = found[0].xyz + 0.01 * found[0].normal
     rod = contact[:, None, :] + np.linspace(0.01, 0.16, 76)[None, :, None] * np.array([0, 0, 1.0])
     assert (sdf(rod.reshape(-1, 3)).reshape(len(contact), -1).min(axis=1) >= 0.007).all()
+
+
+def test_slides_get_no_foot_probes():
+    """A slide starts on the estimated surface; a foot probe's target is off it."""
+    lat = _lattice(lambda p: box_sdf(p, FLOATING["lo"], FLOATING["hi"]))
+    cands = _walls(0.46, 0.54, -0.03, 0.03, [0.05, 0.07])
+    pl = TouchPlanner.from_params({"mode": "3d", "strategy": "uncertainty", "foot_probe_gap_m": 0.01,
+                                   "clearance": "mean", "touch": "slide", **SHAFT}, seed=0)
+    res = pl.plan(_map(lat, cands), np.array([0.62, 0.0, 0.12]))
+    assert res.ok and res.index < len(cands) and len(pl.last_why["invalid"]) == len(cands)

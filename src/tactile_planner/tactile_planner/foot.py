@@ -71,7 +71,7 @@ def foot_probes(lattice: MapLattice, cands: Candidates, probe_z_m: float, gap_m:
     out_below = ~inside & (np.arange(len(z))[None, :] <= k0[:, None])
     last_out = np.where(out_below.any(axis=1), len(z) - 1 - np.argmax(out_below[:, ::-1], axis=1), -1)
     z_b = z[np.clip(last_out + 1, 0, len(z) - 1)]
-    keep = in_xy & inside[rows, k0] & (last_out < k0) & (z_b > probe_z_m + gap_m)
+    keep = in_xy & inside[rows, k0] & (z_b > probe_z_m + gap_m)  # inside at c's height: the run starts there
     if not keep.any():
         return None
     idx, h, z_b = idx[keep], h[keep], z_b[keep]

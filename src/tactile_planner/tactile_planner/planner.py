@@ -327,12 +327,12 @@ class TouchPlanner:
 
     def _plan_with_foot_probes(self, lattice, cands, tip, excluded_targets, min_z: float) -> PlanResult:
         """The ordinary decision, with the foot probes of the candidates' walls among the candidates
-        (``foot_probe_gap_m`` > 0, 3D; tactile_planner.foot): their approach ends with the rod its radius
-        and gap outside the wall's line, and the rod is checked down to the approach's end."""
+        (``foot_probe_gap_m`` > 0, 3D pokes; tactile_planner.foot): their approach ends with the rod its
+        radius and gap outside the wall's line, and the rod is checked down to the approach's end."""
         p = self.params
         gap = float(p["foot_probe_gap_m"])
         found = None
-        if lattice.dim == 3 and gap > 0 and len(cands):
+        if lattice.dim == 3 and gap > 0 and len(cands) and p["touch"] == "poke":  # a slide starts on the surface
             geometry = TouchGeometry.from_params(p)
             rod_m = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
             end_m = geometry.max_depth_m - geometry.tip_radius_m + rod_m + FOOT_PROBE_SLACK_M
