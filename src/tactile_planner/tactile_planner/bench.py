@@ -165,8 +165,9 @@ def decision_case(dim: int, n: int, method: str, reps: int, seed: int) -> dict:
     gpis_params, planner_params = mode_params(dim)
     est = ShapeEstimator.from_params({**gpis_params, "method": method, "duplicate_distance_m": 0.0})
     # the benchmark's sphere floats 5 cm above the table (its contacts are all there is): the 3D
-    # default would answer that with a search under it (support_gap_m), not a decision on the map
-    planner = TouchPlanner.from_params({**planner_params, "support_gap_m": 0.0}, seed=seed)
+    # default would answer that with a search under it (support_gap_m) and probes at the feet of its
+    # walls (foot_probe_gap_m), not a decision on the map's candidates
+    planner = TouchPlanner.from_params({**planner_params, "support_gap_m": 0.0, "foot_probe_gap_m": 0.0}, seed=seed)
     pts, nrm = contacts_on_sphere(np.random.default_rng(seed), n + reps, dim)
     for i in range(n):
         est.add_observation(pts[i], nrm[i], 1)
