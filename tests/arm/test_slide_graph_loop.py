@@ -394,7 +394,7 @@ class ScriptedArm:
     def follow_path(self, path, axes_xyz=None):
         return self._verb("follow_path", 0.3)
 
-    def approach(self, direction, depth):
+    def approach(self, direction, depth, q_start=None):
         self.depth = depth
         hit = self.results[0] == TaskResult.CONTACT
         return self._verb("approach", 0.02, contact_xyz=[0.45, 0.2, 0.06] if hit else None)

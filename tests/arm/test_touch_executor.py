@@ -39,6 +39,8 @@ class FakeArm:
         self.motion_time_s = 0.0  # robot time in motions (each scripted verb takes 0.3 s)
         self.t = 0.0
         self._last = None
+        self.approach_origin_q = None  # the joints the last approach began from (retract goes back there)
+        self.approach_q_starts = []  # q_start of each approach (None: the measured joints)
 
     def now_s(self):
         return self.t
@@ -87,7 +89,10 @@ class FakeArm:
     def finger_tilt_rad(self):
         return self.tilt_rad
 
-    def approach(self, direction, depth):
+    def approach(self, direction, depth, q_start=None):
+        self.approach_q_starts.append(None if q_start is None else np.array(q_start))
+        if q_start is None:
+            self.approach_origin_q = np.array([0.1 * len(self.approach_q_starts)] * 7)  # "measured" here
         return self._verb("approach", 0.02)
 
     def retract(self):
@@ -217,6 +222,10 @@ def test_an_approach_stopped_for_a_silent_sensor_waits_for_it_retracts_and_appro
     assert [c for c in arm.calls if c != "plan"] == ["follow_path", "approach", "retract", "approach", "retract"]
     r = done[0]
     assert r.outcome == "contact" and r.observation_stamp_ns == 42 and "repeated" in r.reason
+    # the repeat is planned from the joints the first approach began from (where the retract went back to),
+    # not from whatever joint state was sampled last: the same motion
+    first, repeat = arm.approach_q_starts
+    assert first is None and np.array_equal(repeat, np.full(7, 0.1))
 
 
 def test_a_sensor_that_stays_silent_ends_the_touch_after_a_retract():

@@ -189,13 +189,15 @@ class ArmCommander:
             return self._reject("follow_path", str(exc))
         return self._start("follow_path", path, self.cfg.tip_speed_mps, self.cfg.waypoint_step_m, traj=traj)
 
-    def approach(self, direction_xyz: np.ndarray, max_depth_m: float) -> bool:
+    def approach(self, direction_xyz: np.ndarray, max_depth_m: float, q_start: Optional[np.ndarray] = None) -> bool:
         """Guarded move along ``direction_xyz`` (world) for ``max_depth_m`` at ``approach_speed_mps``,
         shortened to end inside the safety box (:meth:`ArmMotions.approach_depth_m`).
 
         Ends as CONTACT on the first label-1 point on /tactile/contacts (the
         arm is stopped at once), or SUCCEEDED at full depth. ``retract()``
-        returns to the start of the approach.
+        returns to the start of the approach. ``q_start``: plan from these joints instead of the
+        measured ones (the arm is there within the goal tolerance: a repeated approach after its
+        retract is then the same motion, whenever the last joint state was sampled).
         """
         d = np.asarray(direction_xyz, dtype=float).reshape(3)
         n = np.linalg.norm(d)
@@ -203,13 +205,24 @@ class ArmCommander:
             return self._reject("approach", "direction must be a non-zero vector and max depth positive")
         if self.tip_xyz is None and not self.cfg.dry_run:
             return self._reject("approach", "no joint state yet")
-        q_origin, origin = self._plan_start()
+        if q_start is not None:
+            q_origin = np.array(q_start, dtype=float)
+            origin = self.model.fk(q_origin)[0]
+        else:
+            q_origin, origin = self._plan_start()
         try:
             depth_m = self.approach_depth_m(origin, d, max_depth_m)
         except OutsideWorkspace as exc:
             return self._reject("approach", str(exc))
-        ok = self._start("approach", self.motions.into_box(origin) + d / n * depth_m, self.cfg.approach_speed_mps,
-                         self.cfg.approach_step_m)
+        end = self.motions.into_box(origin) + d / n * depth_m
+        traj = None
+        if q_start is not None:
+            try:
+                traj = self.plan(end, q_start=q_origin, speed_mps=self.cfg.approach_speed_mps,
+                                 step_m=self.cfg.approach_step_m)
+            except (OutsideWorkspace, TrajectoryError) as exc:
+                return self._reject("approach", str(exc))
+        ok = self._start("approach", end, self.cfg.approach_speed_mps, self.cfg.approach_step_m, traj=traj)
         if ok:
             self.approach_origin_xyz, self.approach_origin_q = origin, np.array(q_origin, dtype=float)
         return ok

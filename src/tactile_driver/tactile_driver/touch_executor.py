@@ -176,7 +176,7 @@ class TouchExecutor:
             if self._state == "sensor_gone":
                 return self._done(OUTCOME_ABORTED, f"approach: the sensor driver was silent for more than "
                                                    f"{arm.cfg.sensor_confirm_timeout_s:g} s (retracted)")
-            return self._start_approach()  # the same approach again, from the same joints
+            return self._start_approach(self.arm.approach_origin_q)  # the same approach again, from the same joints
         elif self._state == "approach":
             self._travel_planned_m += task.traj.length_m
             if (result == TaskResult.ABORTED and getattr(task, "sensor_lost", False) and not arm.estop.engaged
@@ -259,10 +259,11 @@ class TouchExecutor:
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
 
-    def _start_approach(self) -> None:
-        """The guarded approach from the pre-touch point along the goal's axis (a slide's: its own depth)."""
+    def _start_approach(self, q_start=None) -> None:
+        """The guarded approach from the pre-touch point along the goal's axis (a slide's: its own depth);
+        ``q_start``: planned from these joints (a repeat: where the retract took the arm back to)."""
         depth = self.slide_approach_length_m if self._req.is_slide else self.approach_length_m
-        if not self.arm.approach(self._req.approach_dir, depth):
+        if not self.arm.approach(self._req.approach_dir, depth, q_start=q_start):
             return self._done(OUTCOME_ABORTED, f"approach: {self.arm.last_task.reason}")
         self._state = "approach"
 
