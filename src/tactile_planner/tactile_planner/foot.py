@@ -82,8 +82,8 @@ def foot_probes(lattice: MapLattice, cands: Candidates, probe_z_m: float, gap_m:
     _, first = np.unique(cell, axis=0, return_index=True)
     first = np.sort(first)
     idx, h, z_b, line, target = idx[first], h[first], z_b[first], line[first], target[first]
-    interp = lambda f: RegularGridInterpolator(lattice.axes, f, bounds_error=False, fill_value=None)(line)  # noqa: E731
-    normal = np.column_stack([h, np.zeros(len(idx))])
-    probes = Candidates(xyz=target, normal=normal, mean_m=interp(lattice.mean_m),
-                        variance_m2=np.maximum(interp(lattice.variance_m2), 0.0))
+    mean, var = (RegularGridInterpolator(lattice.axes, f, bounds_error=False, fill_value=None)(line)
+                 for f in (lattice.mean_m, lattice.variance_m2))
+    probes = Candidates(xyz=target, normal=np.column_stack([h, np.zeros(len(idx))]), mean_m=mean,
+                        variance_m2=np.maximum(var, 0.0))
     return probes, idx, z_b
