@@ -215,14 +215,7 @@ class ArmCommander:
         except OutsideWorkspace as exc:
             return self._reject("approach", str(exc))
         end = self.motions.into_box(origin) + d / n * depth_m
-        traj = None
-        if q_start is not None:
-            try:
-                traj = self.plan(end, q_start=q_origin, speed_mps=self.cfg.approach_speed_mps,
-                                 step_m=self.cfg.approach_step_m)
-            except (OutsideWorkspace, TrajectoryError) as exc:
-                return self._reject("approach", str(exc))
-        ok = self._start("approach", end, self.cfg.approach_speed_mps, self.cfg.approach_step_m, traj=traj)
+        ok = self._start("approach", end, self.cfg.approach_speed_mps, self.cfg.approach_step_m, q_start=q_start)
         if ok:
             self.approach_origin_xyz, self.approach_origin_q = origin, np.array(q_origin, dtype=float)
         return ok
@@ -467,7 +460,9 @@ class ArmCommander:
         return False
 
     def _start(self, kind: str, path_xyz: Optional[np.ndarray], speed_mps: float, step_m: float,
-               traj: Optional[TimedTrajectory] = None) -> bool:
+               traj: Optional[TimedTrajectory] = None, q_start: Optional[np.ndarray] = None) -> bool:
+        """Send ``traj``, or the plan of ``path_xyz`` from ``q_start`` (default: :meth:`_plan_start`),
+        unless busy, e-stopped or without a recent joint state (then rejected, like a failed plan)."""
         if self._task is not None:
             return self._reject(kind, f"busy with {self._task.kind}")
         if self.estop.engaged:
@@ -475,7 +470,8 @@ class ArmCommander:
         if (self.q is None and not self.cfg.dry_run) or self.watchdog_stale():
             return self._reject(kind, "no recent joint state", joint_states_lost=True)
         try:
-            traj = traj if traj is not None else self.plan(path_xyz, speed_mps=speed_mps, step_m=step_m)
+            traj = traj if traj is not None else self.plan(path_xyz, q_start=q_start, speed_mps=speed_mps,
+                                                           step_m=step_m)
         except (OutsideWorkspace, TrajectoryError) as exc:
             return self._reject(kind, str(exc))
         msg = arm_msgs.trajectory_msg(traj, self.model.joint_names, topics.WORLD_FRAME)

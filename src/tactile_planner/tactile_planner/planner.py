@@ -332,8 +332,8 @@ class TouchPlanner:
         p = self.params
         gap = float(p["foot_probe_gap_m"])
         found = None
+        geometry = TouchGeometry.from_params(p)
         if lattice.dim == 3 and gap > 0 and len(cands) and p["touch"] == "poke":  # a slide starts on the surface
-            geometry = TouchGeometry.from_params(p)
             rod_m = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
             end_m = geometry.max_depth_m - geometry.tip_radius_m + rod_m + FOOT_PROBE_SLACK_M
             found = foot_probes(lattice, cands, min_z + FOOT_PROBE_LIFT_M, gap, end_m)
@@ -343,7 +343,7 @@ class TouchPlanner:
         m = len(cands)
         both = Candidates(*(np.concatenate([getattr(cands, f), getattr(probes, f)])
                             for f in ("xyz", "normal", "mean_m", "variance_m2")))
-        past = np.r_[np.zeros(m), np.full(len(probes), TouchGeometry.from_params(p).max_depth_m)]
+        past = np.r_[np.zeros(m), np.full(len(probes), geometry.max_depth_m)]
         res = self._plan_on(lattice, both, tip, excluded_targets, "", rod_past_contact_m=past)
         if res.ok and res.index >= m:
             k = res.index - m
