@@ -23,8 +23,9 @@ graph (:class:`~tactile_planner.graph.FreeSpaceGraph`):
 - entry: the vertical rod above E keeps ``path_need_m``; the turn: the rod keeps it on axes between +z
   and ``a`` (great circle, every ``turn_step_rad``);
 - the wrist: the rod's far end (the flange) at the pre-touch point is at least ``min_flange_z_m`` above
-  the table (the arm's wrist is wider than the rod; a nearly level finger near the table would put it
-  on the table). Nothing else of the arm is modelled: the commander refuses what its IK cannot reach.
+  the table, and (``wrist``) the links behind the flange, cylinders about the finger axis
+  (:mod:`tactile_planner.wrist`), clear of the table and the estimate at the contact, along the insertion
+  and on the turn. Nothing else of the arm is modelled: the commander refuses what its IK cannot reach.
 
 Axes tried, smallest tilt first (``tilts_rad``), at each tilt the azimuth of the candidate's outward
 normal first, then the others by their angle from it (the rod leaves the surface it faces); for each
@@ -34,10 +35,13 @@ axis the shortest insertion that passes, in steps of ``insert_step_m``. The firs
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
 from tactile_common.finger_axis import EZ, slerp_axes
+
+from .wrist import WristCheck
 
 @dataclass(frozen=True)
 class TiltedEntries:
@@ -93,7 +97,8 @@ def turn_axes(axis_xyz: np.ndarray, step_rad: float) -> np.ndarray:
 
 def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray, normal_xyz: np.ndarray,
                    tip_radius_m: float, touch_need_m: float, path_need_m: float, max_tilt_rad: float,
-                   settings: TiltSettings = TiltSettings(), min_normal_axis: float = -1.0) -> TiltedEntries:
+                   settings: TiltSettings = TiltSettings(), min_normal_axis: float = -1.0,
+                   wrist: Optional[WristCheck] = None) -> TiltedEntries:
     """The first tilted entry that passes the checks (module docstring) for each candidate.
 
     Args:
@@ -106,6 +111,9 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
         min_normal_axis: the sensed side: n · a ≥ this (the planner's ``min_normal_z`` for the vertical
             finger, a = +z): the contact, at −n from the tip centre, must fall on the skin's taxels,
             which cover the tip's far side from the flange and a band above its equator.
+        wrist: the links behind the flange, kept off the table and the estimate (tactile_planner.wrist) at the
+            contact, at every whole insertion step from the pre-touch point to the entry, and on the turn
+            (None: not checked).
     """
     s = settings
     p = np.asarray(pretouch_xyz, float).reshape(-1, 3)
@@ -159,6 +167,8 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
             clear = graph.rod_clearance_m(np.repeat(E[rows, ks], T, axis=0), tip_radius_m, s.rod_step_m,
                                           turns.reshape(-1, 3)).reshape(-1, T).min(axis=1)
             ok[rows, ks] = clear >= path_need_m
+        if wrist is not None and ok.any():
+            ok = _wrist_ok(wrist, ok, pa, c[todo], ax, A, steps, E, s.turn_step_rad)
         first = np.where(ok.any(axis=1), ok.argmax(axis=1), -1).reshape(R, A)  # shortest insertion per axis
         has = (first >= 0).any(axis=1)
         r = np.flatnonzero(has)
@@ -168,3 +178,23 @@ def tilted_entries(graph, pretouch_xyz: np.ndarray, contact_tip_xyz: np.ndarray,
         insert_out[todo[r]] = steps[k]
         entry_out[todo[r]] = E[r * A + a, k]
     return TiltedEntries(axis_out, entry_out, insert_out)
+
+
+def _wrist_ok(wrist: WristCheck, ok: np.ndarray, pa: np.ndarray, contact: np.ndarray, ax: np.ndarray, n_axes: int,
+              steps: np.ndarray, E: np.ndarray, turn_step_rad: float) -> np.ndarray:
+    """``ok`` (rows = (candidate, axis), K insertions) where the wrist is clear too: at the contact, at the
+    pre-touch point and every whole insertion step up to the entry (the wrist moves along the axis line),
+    and at the entry on the turn from +z (both ends included)."""
+    ok = ok.copy()
+    rows = np.flatnonzero(ok.any(axis=1))
+    at_contact = wrist.clear(np.repeat(contact, n_axes, axis=0)[rows], ax[rows])
+    pos = pa[rows][:, None, :] + np.r_[0.0, steps][None, :, None] * ax[rows][:, None, :]  # (P, K + 1, 3)
+    at_pos = wrist.clear(pos.reshape(-1, 3), np.repeat(ax[rows], len(steps) + 1, axis=0)).reshape(len(rows), -1)
+    upto = np.logical_and.accumulate(at_pos, axis=1)[:, 1:]  # positions 0..k+1 for insertion k
+    ok[rows] &= at_contact[:, None] & upto
+    if ok.any():
+        r, k = np.nonzero(ok)
+        turns = np.concatenate([np.tile(EZ, (len(r), 1, 1)), turn_axes(ax[r], turn_step_rad)], axis=1)  # (P, T, 3)
+        T = turns.shape[1]
+        ok[r, k] = wrist.clear(np.repeat(E[r, k], T, axis=0), turns.reshape(-1, 3)).reshape(-1, T).all(axis=1)
+    return ok
