@@ -128,3 +128,32 @@ def test_the_tip_track_carries_the_finger_axis_to_the_approachs_end():
     assert len(track) == len(A) == 4
     np.testing.assert_allclose(A[-1], [-1.0, 0.0, 0.0])
     assert _tip_track(path, True, np.array([0.50, 0.0, 0.10]), [-1.0, 0.0, 0.0], None, 0.01)[1] is None
+
+
+def test_the_wrist_of_a_tilted_finger_is_measured_against_the_table_and_the_object():
+    from tactile_bringup.evaluation import Evaluator
+    from tactile_bringup.experiment import Experiment
+    from tactile_bringup.report import summarise
+    from tactile_planner.wrist import PANDA_WRIST_BANDS_M
+
+    ev = Evaluator(Experiment(mode="3d", object_name="sphere", touches=1, seed=0))
+    L = ev.shaft_length_m
+    tip = np.array([[0.40, 0.0, 0.12]])
+    assert ev.wrist_clearance_m(tip, np.array([[0.0, 0.0, 1.0]])) is None  # vertical: not measured
+    assert ev.wrist_clearance_m(tip, None) is None
+    # tilted 60 deg away from the sphere: the table binds, at the lowest rim point of a band (closed form)
+    a = np.array([-np.sin(np.pi / 3), 0.0, np.cos(np.pi / 3)])
+    want = min(0.12 + (L + t0) * a[2] - rho * np.sin(np.pi / 3) for t0, _, rho in PANDA_WRIST_BANDS_M)
+    assert ev.wrist_clearance_m(tip, a[None]) == pytest.approx(want, abs=1e-9)
+    # level 6 cm up: link 6 goes into the table
+    level = np.array([[-1.0, 0.0, 0.0]])
+    assert ev.wrist_clearance_m(np.array([[0.40, 0.0, 0.06]]), level) == pytest.approx(0.06 - 0.141, abs=1e-9)
+    # level at the height of the sphere's centre, pointing at it from 25 cm: the wrist is in the ball
+    c = np.array([0.5, 0.0, 0.05])
+    assert ev.wrist_clearance_m((c + [-0.25, 0.0, 0.10])[None], np.array([[1.0, 0.0, 0.0]])) < 0
+    touches = [{"travel_m": 0.1, "time_s": 1.0, "iou": 0.5, "iou_reachable": 0.5, "wrist_clearance_m": w}
+               for w in (None, 0.02, -0.01)]
+    assert summarise(touches, 0.1, "touch budget")["wrist_collisions"] == 1
+    for t in touches:
+        t["wrist_clearance_m"] = None
+    assert summarise(touches, 0.1, "touch budget")["wrist_collisions"] is None

@@ -18,7 +18,10 @@ In 3D, the true clearance of the finger's rod over a touch
 (:meth:`Evaluator.shaft_clearance_m`): the smallest distance between the true
 surface and the vertical rod above the tip (the planner's ``shaft_length_m``,
 ``shaft_radius_m``) along the tip's path, approach and slide; < 0: the rod went
-into the object (a collision on a real rig).
+into the object (a collision on a real rig). For a tilted finger, the same for its wrist
+(:meth:`Evaluator.wrist_clearance_m`): the smallest true sdf, or height over the table, on the cylinders
+that hold the simulated Panda's link 7 and link 6 (:data:`tactile_planner.wrist.PANDA_WRIST_BANDS_M`,
+whatever the planner's ``tilt_wrist_bands_m``) along the tilted part of the track.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from typing import Optional
 import numpy as np
 
 from tactile_common.touch_geometry import rod_points
+from tactile_planner.wrist import PANDA_WRIST_BANDS_M, band_points
 from tactile_driver.trajectory import densify, densify_with_axes
 from tactile_sim import metrics
 from tactile_sim.objects import SDFObject, make_object
@@ -49,6 +53,7 @@ class Evaluator:
         self._field_cache: tuple = (None, None, None)  # (estimator, its version, its field on the lattice)
         self.shaft_length_m = float(planner.get("shaft_length_m", 0.16))
         self.shaft_radius_m = float(planner.get("shaft_radius_m", 0.005))
+        self.wrist_bands_m = PANDA_WRIST_BANDS_M  # the simulated arm's, whatever the planner assumes
 
     def _field(self, estimator) -> np.ndarray:
         """The estimate's field on the evaluation lattice (inside where < 0), computed once per estimate
@@ -96,6 +101,24 @@ class Evaluator:
                                            step_m / self.shaft_length_m)  # the rod's end moves ≤ step_m too
         rod = rod_points(tips, self.tip_radius_m, self.shaft_length_m, step_m, axes)
         return float(np.min(self.obj.sdf(rod.reshape(-1, 3)))) - self.shaft_radius_m
+
+    def wrist_clearance_m(self, tip_path_xyz: np.ndarray, axes_xyz: Optional[np.ndarray],
+                          step_m: float = 0.005, table_z_m: float = 0.0) -> Optional[float]:
+        """3D, a tilted finger: min over the track's points whose axis leaves vertical (densified as in
+        :meth:`shaft_clearance_m`, every ``step_m``) of the true sdf and of the height over the table on
+        the wrist's cylinders (:func:`tactile_planner.wrist.band_points`) (m; < 0: the wrist entered the
+        object or the table). None in 2D, for a vertical track or an empty one."""
+        P = np.asarray(tip_path_xyz, dtype=float).reshape(-1, 3)
+        if self.obj.dim != 3 or axes_xyz is None or not len(P):
+            return None
+        A = np.asarray(axes_xyz, dtype=float).reshape(-1, 3)
+        ok = np.isfinite(P).all(axis=1) & np.isfinite(A).all(axis=1)
+        tips, axes = densify_with_axes(P[ok], A[ok], step_m, step_m / self.shaft_length_m)
+        tilted = axes[:, 2] < np.cos(1e-3)
+        if not tilted.any():
+            return None
+        pts = band_points(tips[tilted], axes[tilted], self.wrist_bands_m, self.shaft_length_m).reshape(-1, 3)
+        return float(min(np.min(self.obj.sdf(pts)), np.min(pts[:, 2]) - table_z_m))
 
     def surface_error_m(self, estimator) -> Optional[float]:
         surface = estimator.surface_points()

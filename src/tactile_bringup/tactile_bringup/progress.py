@@ -141,6 +141,7 @@ def touch_record(index: int, target_xyz, contact: bool, point_xyz, normal_xyz, t
         "path": path,
         "path_axes": axes,
         "shaft_clearance_m": evaluator.shaft_clearance_m(track, axes_xyz=track_axes) if evaluator else None,
+        "wrist_clearance_m": evaluator.wrist_clearance_m(track, track_axes) if evaluator else None,
         "touch": "poke" if slide is None else "slide",
         "slide_m": None if slide is None else float(slide.slid_m),
         "slide_stop": None if slide is None else slide.stop.value,

@@ -87,6 +87,9 @@ def summarise(touches: Sequence[dict], prior_iou: Optional[float], stopped_becau
     # 3D: touches whose track put the finger's rod into the true object (a collision on a rig)
     shaft = [t.get("shaft_clearance_m") for t in touches if t.get("shaft_clearance_m") is not None]
     summary["shaft_collisions"] = sum(c < 0 for c in shaft) if shaft else None
+    # 3D, tilted touches: the wrist behind the flange in the true object or the table
+    wrist = [t.get("wrist_clearance_m") for t in touches if t.get("wrist_clearance_m") is not None]
+    summary["wrist_collisions"] = sum(c < 0 for c in wrist) if wrist else None
     for level in IOU_LEVELS:
         summary[f"travel_to_iou_reachable_{level:.2f}_m"] = first_reaching(touches, level, "travel_m", "iou_reachable")
         summary[f"time_to_iou_reachable_{level:.2f}_s"] = first_reaching(touches, level, "time_s", "iou_reachable")

@@ -51,6 +51,31 @@ def bands_from_flat(values: Sequence[float]) -> tuple:
     return bands
 
 
+def band_points(tip_xyz: np.ndarray, axis_xyz: np.ndarray, bands_m: tuple, rod_length_m: float,
+                step_m: float = 0.01, n_phi: int = 24) -> np.ndarray:
+    """(N, P, 3) points on the wrist's cylinders of N poses (world): on each band's axis and rim every
+    ``step_m`` along it (both ends included) and on its two end discs at half the radius, ``n_phi``
+    around: for measuring the wrist against an exact object (a sample, not a bound)."""
+    x = np.asarray(tip_xyz, float).reshape(-1, 3)
+    a = np.broadcast_to(np.asarray(axis_xyz, float).reshape(-1, 3), x.shape)
+    u = np.cross(a, np.where(np.abs(a[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(a, u)
+    phi = np.linspace(0.0, 2.0 * np.pi, n_phi, endpoint=False)
+    out = []
+    for t0, t1, rho in bands_m:
+        t = rod_length_m + np.append(np.arange(t0, t1, step_m), t1)
+        ends = rod_length_m + np.array([t0, t1])
+        # (t, radius) pairs: the axis and the rim along the band, half the radius on the end discs
+        tr = np.concatenate([np.column_stack([np.repeat(t, n_phi), np.full(len(t) * n_phi, rho)]),
+                             np.column_stack([np.repeat(ends, n_phi), np.full(2 * n_phi, 0.5 * rho)]),
+                             np.column_stack([t, np.zeros(len(t))])])
+        ang = np.concatenate([np.tile(phi, len(t)), np.tile(phi, 2), np.zeros(len(t))])
+        off = (tr[:, 1] * np.cos(ang))[None, :, None] * u[:, None, :] + (tr[:, 1] * np.sin(ang))[None, :, None] * v[:, None, :]
+        out.append(x[:, None, :] + tr[None, :, 0, None] * a[:, None, :] + off)
+    return np.concatenate(out, axis=1)
+
+
 @dataclass(frozen=True)
 class WristCheck:
     """Clearance of the wrist's bands from the table and from an estimate (module docstring)."""
