@@ -237,3 +237,20 @@ def test_a_tilted_finger_goes_back_through_its_paths_own_joints_to_where_it_turn
     mid = (k0 + len(traj.positions_rad)) // 2
     part = motions.retrace(traj, traj.positions_rad[mid], k0)
     assert len(part.positions_rad) == mid - k0 + 2
+
+
+def test_a_turn_that_would_put_the_wrist_on_the_table_is_refused(motions, full):
+    """Level, link 6 reaches 14.1 cm from the finger axis (tactile_common.wrist): with the tip 10 cm up it
+    would go 4 cm into the table; 17 cm up it clears the table + margin."""
+    level = _axis(90, 90)
+    q_low = motions.tip_path(np.array([[0.5, 0.0, 0.10]]), motions.home).positions_rad[-1]
+    with pytest.raises(TrajectoryError, match="wrist would reach z = -0.04"):
+        motions.reorient(q_low, level)
+    q_high = motions.tip_path(np.array([[0.5, 0.0, 0.17]]), motions.home).positions_rad[-1]
+    traj = motions.reorient(q_high, level)
+    assert _angle(_full_tip(full, traj.positions_rad[-1])[1], level) <= motions.ik.max_tilt_rad
+    # another arm: no bands wider than the rod, and the low turn is planned
+    thin = ArmMotions(CommanderConfig(wrist_bands_m=(0.0, 0.01, 0.0)))
+    assert thin.reorient(q_low, level).positions_rad.shape[0] > 1
+    with pytest.raises(ValueError, match="wrist_bands_m"):
+        ArmMotions(CommanderConfig(wrist_bands_m=(0.0, 0.1)))

@@ -149,7 +149,7 @@ def test_the_bands_parameter_is_checked():
     assert bands_from_flat([0.0, 0.1, 0.05]) == ((0.0, 0.1, 0.05),)
     for bad in ([], [0.0, 0.1], [0.1, 0.05, 0.02], [-0.01, 0.1, 0.02], [0.0, 0.1, -0.02]):
         with pytest.raises(ValueError, match="tilt_wrist_bands_m"):
-            bands_from_flat(bad)
+            bands_from_flat(bad, "tilt_wrist_bands_m")
     from tactile_planner.planner import TouchPlanner
     with pytest.raises(ValueError, match="tilt_wrist_bands_m"):
         TouchPlanner.from_params({"mode": "3d", "tilt_wrist_bands_m": [0.0, 0.1]}, seed=0)

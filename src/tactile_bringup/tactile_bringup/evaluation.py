@@ -20,7 +20,7 @@ surface and the vertical rod above the tip (the planner's ``shaft_length_m``,
 ``shaft_radius_m``) along the tip's path, approach and slide; < 0: the rod went
 into the object (a collision on a real rig). For a tilted finger, the same for its wrist
 (:meth:`Evaluator.wrist_clearance_m`): the smallest true sdf, or height over the table, on the cylinders
-that hold the simulated Panda's link 7 and link 6 (:data:`tactile_planner.wrist.PANDA_WRIST_BANDS_M`,
+that hold the simulated Panda's link 7 and link 6 (:data:`tactile_common.wrist.PANDA_WRIST_BANDS_M`,
 whatever the planner's ``tilt_wrist_bands_m``) along the tilted part of the track.
 """
 
@@ -31,7 +31,8 @@ from typing import Optional
 import numpy as np
 
 from tactile_common.touch_geometry import rod_points
-from tactile_planner.wrist import PANDA_WRIST_BANDS_M, band_points
+from tactile_common.wrist import PANDA_WRIST_BANDS_M
+from tactile_planner.wrist import band_points
 from tactile_driver.trajectory import densify, densify_with_axes
 from tactile_sim import metrics
 from tactile_sim.objects import SDFObject, make_object

@@ -35,6 +35,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from tactile_common.wrist import bands_from_flat, wrist_lowest_z_m
 from tactile_driver.ik import IKSettings, tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
 from tactile_driver.safety import OutsideWorkspace, WorkspaceBox
@@ -62,6 +63,7 @@ class ArmMotions:
         self.limits = MotionLimits.for_model(self.model, list(c.max_joint_velocity_rad_s),
                                              list(c.max_joint_acceleration_rad_s2), c.tip_speed_mps)
         self.ik = IKSettings(tol_m=c.ik_tol_m, max_tilt_rad=c.max_tilt_rad)
+        self.wrist_bands_m = bands_from_flat(c.wrist_bands_m, "wrist_bands_m")
         self.home = home_configuration(self.model, c.home_rad)
 
     def _limits(self, speed_mps: Optional[float]) -> MotionLimits:
@@ -94,8 +96,8 @@ class ArmMotions:
 
         Raises:
             OutsideWorkspace: a path point or a planned tip waypoint is outside the box.
-            TrajectoryError: IK failed, a joint limit would be broken, or the axes are not finite
-                non-zero (K, 3).
+            TrajectoryError: IK failed, a joint limit would be broken, the axes are not finite
+                non-zero (K, 3), or (a tilted finger) the wrist would reach below the table + margin.
         """
         path = np.asarray(path_xyz, dtype=float).reshape(-1, 3)
         # The targets must be inside the box; the IK waypoints towards them within the IK's accuracy: a
@@ -114,7 +116,20 @@ class ArmMotions:
                                  step_m or self.cfg.waypoint_step_m, self.ik, self.cfg.max_joint_step_rad,
                                  axes_xyz=axes, max_step_rad=step_rad or MAX_AXIS_STEP_RAD)
         self.box.check(traj.tip_xyz[1:], slack_m=self.ik.tol_m)
+        if axes is not None:  # a vertical finger's wrist is ≥ tip_offset_m above its tip, over the table
+            self._check_wrist(traj)
         return traj
+
+    def _check_wrist(self, traj: TimedTrajectory) -> None:
+        """Raise TrajectoryError where the wrist's cylinders (``wrist_bands_m``, tactile_common.wrist) of a
+        waypoint reach below the table + ``table_margin_m``: a tilted finger turns the wrist low."""
+        tips, axes = zip(*((p, R[:, 2]) for p, R in (self.model.fk(q) for q in traj.positions_rad)))
+        low = wrist_lowest_z_m(np.array(tips), np.array(axes), self.wrist_bands_m, self.cfg.tip_offset_m)
+        floor = self.cfg.table_z_m + self.cfg.table_margin_m
+        k = int(np.argmin(low))
+        if low[k] < floor - 1e-9:
+            raise TrajectoryError(f"the wrist would reach z = {low[k]:.3f} m at waypoint {k + 1}/{len(low)}, "
+                                  f"below the table + margin ({floor:.3f} m)")
 
     def reorient(self, q_start: np.ndarray, axis_xyz: np.ndarray, step_rad: Optional[float] = None) -> TimedTrajectory:
         """The finger turned in place about the tip centre, from its axis at ``q_start`` to ``axis_xyz``

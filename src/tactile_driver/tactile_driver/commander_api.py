@@ -50,6 +50,7 @@ from trajectory_msgs.msg import JointTrajectory
 from tactile_common import fields, qos, topics
 from tactile_common.pointcloud import PointCloudError, from_pointcloud2
 from tactile_common.stamps import ns_from_s, stamp_s, time_from_ns
+from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 from tactile_driver import arm_msgs
 from tactile_driver.contact import back_off_target
 from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
@@ -94,6 +95,7 @@ class CommanderConfig:
     max_joint_step_rad: float = 0.3
     ik_tol_m: float = 1e-4
     max_tilt_rad: float = 0.10
+    wrist_bands_m: tuple = PANDA_WRIST_BANDS_FLAT_M  # the links behind the flange (tactile_common.wrist)
     goal_tolerance_rad: float = 0.002
     goal_time_tolerance_s: float = 2.0
     contact_latency_s: float = 0.25

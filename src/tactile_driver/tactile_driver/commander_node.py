@@ -93,6 +93,9 @@ PARAMS = {
     "max_joint_step_rad": (_D.max_joint_step_rad, "max joint change between waypoints (IK branch flip guard)", {"gt": 0.0}),
     "ik_tol_m": (_D.ik_tol_m, "IK position tolerance", {"gt": 0.0}),
     "max_tilt_rad": (_D.max_tilt_rad, "max finger tilt from vertical", {"ge": 0.0}),
+    "wrist_bands_m": (list(_D.wrist_bands_m), "the links behind the flange as cylinders about the finger axis, "
+                      "[t0, t1, radius, ...] (m behind the flange): no plan of a tilted finger takes them below "
+                      "table + margin (tactile_common.wrist; default: the Panda's link 7 and link 6)"),
     "goal_tolerance_rad": (_D.goal_tolerance_rad, "joint error accepted at the end of a trajectory", {"gt": 0.0}),
     "goal_time_tolerance_s": (_D.goal_time_tolerance_s, "extra time to reach it before aborting", {"ge": 0.0}),
     "contact_latency_s": (_D.contact_latency_s, "an approach that reached full depth counts the frames of this "

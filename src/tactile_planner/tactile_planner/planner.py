@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse.csgraph as csg
 
 from tactile_common.finger_axis import EZ
+from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 from tactile_common.touch_geometry import MotionModel, TouchGeometry
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
@@ -31,7 +32,7 @@ from .paths import path_length_m, shortcut
 from .search import floating_base, object_lost, ring_radii_m, ring_search_map, search_map
 from . import slides
 from .tilt import TiltedEntries, TiltSettings, tilted_entries
-from .wrist import PANDA_WRIST_BANDS_M, WristCheck, bands_from_flat
+from .wrist import WristCheck, bands_from_flat
 from .strategies import INFO_TRAVEL_PER, SCORE_FORMS, STRATEGIES, SelectionContext, StrategyParams, score_candidates
 from .travel import TRAVEL_LENGTHS, TravelError, make_backend
 
@@ -116,7 +117,7 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                           "(where it turns) to the pre-touch point", {"gt": 0.0}),
     "tilt_min_flange_z_m": (0.10, "3D: a tilted finger keeps its flange (the rod's far end) at least this high "
                             "above the table at the pre-touch point: the wrist is wider than the rod", {"ge": 0.0}),
-    "tilt_wrist_bands_m": ([v for band in PANDA_WRIST_BANDS_M for v in band],
+    "tilt_wrist_bands_m": (list(PANDA_WRIST_BANDS_FLAT_M),
                            "3D: the links behind the flange as cylinders about the finger axis, [t0, t1, radius, ...]: "
                            "from t0 to t1 behind the flange, of that radius; a tilted finger keeps them off the table "
                            "and the estimate (tactile_planner.wrist; default: the Panda's link 7 and link 6)"),
@@ -224,7 +225,7 @@ class TouchPlanner:
             raise ValueError(f"clearance must be one of {CLEARANCES}, got '{p['clearance']}'")
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
-        bands_from_flat(p["tilt_wrist_bands_m"])  # raises ValueError on a malformed list
+        bands_from_flat(p["tilt_wrist_bands_m"], "tilt_wrist_bands_m")  # ValueError on a malformed list
         if p["info_travel_per"] not in INFO_TRAVEL_PER:
             raise ValueError(f"info_travel_per must be one of {INFO_TRAVEL_PER}, got '{p['info_travel_per']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
@@ -393,16 +394,15 @@ class TouchPlanner:
         out = TiltedEntries(np.full((m, 3), np.nan), np.full((m, 3), np.nan), np.full(m, np.nan))
         if ask.any():
             skin = max(float(p["margin_m"]) - tip_radius_m, 0.0)
+            wrist = WristCheck.on_lattice(graph.lattice, bands_from_flat(p["tilt_wrist_bands_m"], "tilt_wrist_bands_m"),
+                                          float(graph.shaft_length_m), self._min_tip_z_m(3) - tip_radius_m,
+                                          float(p["tilt_wrist_gap_m"]))  # the floor: table + table margin
             got = tilted_entries(graph, pretouch[ask], target[ask] + tip_radius_m * normal[ask], normal[ask],
                                  tip_radius_m, float(p["shaft_radius_m"]) + float(p["shaft_gap_m"]),
                                  float(p["shaft_radius_m"]) + skin, tilt,
                                  replace(TiltSettings(), insert_max_m=float(p["tilt_insert_max_m"]),
                                          min_flange_z_m=float(p["tilt_min_flange_z_m"])),
-                                 float(p["min_normal_z"]),
-                                 WristCheck.on_lattice(graph.lattice, bands_from_flat(p["tilt_wrist_bands_m"]),
-                                                       float(graph.shaft_length_m),
-                                                       self._min_tip_z_m(3) - tip_radius_m,
-                                                       float(p["tilt_wrist_gap_m"])))
+                                 float(p["min_normal_z"]), wrist)
             out.axis_xyz[ask], out.entry_xyz[ask], out.insert_m[ask] = got.axis_xyz, got.entry_xyz, got.insert_m
         return out
 

@@ -1,54 +1,32 @@
-"""The wrist beyond the flange (3D, a tilted finger): cylinders about the finger axis.
+"""The wrist beyond the flange kept clear by a tilted finger (3D): the table and the estimate.
 
-The rod is thin, the arm's last links behind the flange are not. On the Panda, link 7 reaches 9.1 cm
-from the flange's axis up to 5 cm behind the flange, link 6 13.9 cm from 5 to 15 cm behind it and
-10.4 cm on to 19 cm (example-robot-data's collision meshes: the largest distance of points on their
-triangles from the axis, by band along it; the bands' radii add 2 mm). Joint 7 turns about that axis,
-which is the finger's, so however the IK sets it those distances stay: the two links lie inside
-cylinders about the finger axis whatever the arm's other joints do (link 5 and below move with joint 6: not modelled). A
-vertical finger carries them 16 cm and more above its tip, over any object lower than that (they are
-not checked for a vertical finger: beside an object taller than the rod they would be); a tilted one
-brings them down towards the table and the object, which the flange-height rule alone
-(``tilt_min_flange_z_m``) does not see: level, with the flange 10 cm up, link 6 would reach 4 cm into
-the table.
+The rod is thin, the arm's last links behind the flange are not: cylinders about the finger axis
+(:mod:`tactile_common.wrist`: the bands, the Panda's by default). A vertical finger carries them 16 cm
+and more above its tip, over any object lower than that (they are not checked for a vertical finger:
+beside an object taller than the rod they would not be clear); a tilted one brings them down towards
+the table and the object, which the flange-height rule alone (``tilt_min_flange_z_m``) does not see:
+level, with the flange 10 cm up, link 6 would reach 4 cm into the table.
 
-World frame, metres. A pose is a tip centre x and a finger axis a (unit, from the tip towards the
-flange; the flange at x + L·a, L the rod's length). Band (t0, t1, ρ): the cylinder of radius ρ about
-the axis from x + (L + t0)·a to x + (L + t1)·a. It is clear when
+World frame, metres. A pose (tip centre x, finger axis a) is clear when
 
-- the table: its lowest point, min over t ∈ {t0, t1} of z + (L + t)·a_z − ρ·√(1 − a_z²), is at or
+- the table: the cylinders' lowest point (:func:`tactile_common.wrist.wrist_lowest_z_m`) is at or
   above ``floor_z_m`` (the planner's table + table margin);
 - the estimate: every lattice node on the estimate's boundary (μ < 0 with a 6-neighbour μ ≥ 0) lies at
   least ``gap_m`` + the lattice's half cell diagonal (the estimated surface may lie that far past a
-  node) from the cylinder (exact point-to-cylinder distance, for the nodes a k-d tree finds near it).
+  node) from each cylinder (exact point-to-cylinder distance, for the nodes a k-d tree finds near it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-#: (t0, t1, radius) in metres behind the flange: the Panda's link 7 and link 6 (module docstring).
-PANDA_WRIST_BANDS_M = ((0.0, 0.05, 0.093), (0.05, 0.15, 0.141), (0.15, 0.19, 0.106))
+from tactile_common.wrist import PANDA_WRIST_BANDS_M, bands_from_flat, wrist_lowest_z_m
 
-
-def bands_from_flat(values: Sequence[float]) -> tuple:
-    """((t0, t1, radius), ...) from the flat list [t0, t1, radius, ...] of the ROS parameter.
-
-    Raises:
-        ValueError: not whole triples, or a band with t0 < 0, t1 ≤ t0 or a negative radius.
-    """
-    v = [float(x) for x in values]
-    if len(v) % 3 or not v:
-        raise ValueError(f"tilt_wrist_bands_m must be triples [t0, t1, radius, ...] (m), got {len(v)} values")
-    bands = tuple(tuple(v[i:i + 3]) for i in range(0, len(v), 3))
-    for t0, t1, r in bands:
-        if not (np.isfinite([t0, t1, r]).all() and 0.0 <= t0 < t1 and r >= 0.0):
-            raise ValueError(f"tilt_wrist_bands_m: band ({t0}, {t1}, {r}) needs 0 ≤ t0 < t1 and radius ≥ 0")
-    return bands
+__all__ = ["PANDA_WRIST_BANDS_M", "WristCheck", "band_points", "bands_from_flat"]
 
 
 def band_points(tip_xyz: np.ndarray, axis_xyz: np.ndarray, bands_m: tuple, rod_length_m: float,
@@ -71,7 +49,8 @@ def band_points(tip_xyz: np.ndarray, axis_xyz: np.ndarray, bands_m: tuple, rod_l
                              np.column_stack([np.repeat(ends, n_phi), np.full(2 * n_phi, 0.5 * rho)]),
                              np.column_stack([t, np.zeros(len(t))])])
         ang = np.concatenate([np.tile(phi, len(t)), np.tile(phi, 2), np.zeros(len(t))])
-        off = (tr[:, 1] * np.cos(ang))[None, :, None] * u[:, None, :] + (tr[:, 1] * np.sin(ang))[None, :, None] * v[:, None, :]
+        off = ((tr[:, 1] * np.cos(ang))[None, :, None] * u[:, None, :]
+               + (tr[:, 1] * np.sin(ang))[None, :, None] * v[:, None, :])
         out.append(x[:, None, :] + tr[None, :, 0, None] * a[:, None, :] + off)
     return np.concatenate(out, axis=1)
 
@@ -111,13 +90,10 @@ class WristCheck:
         ok = np.ones(len(x), bool)
         if not len(x):
             return ok
-        side = np.sqrt(np.clip(1.0 - a[:, 2] ** 2, 0.0, 1.0))
-        need = self.gap_m + self.slack_m
-        for t0, t1, rho in self.bands_m:
-            low = np.minimum(x[:, 2] + (self.rod_length_m + t0) * a[:, 2],
-                             x[:, 2] + (self.rod_length_m + t1) * a[:, 2]) - rho * side
-            ok &= low >= self.floor_z_m - 1e-12
-            if self.boundary is not None:
+        ok &= wrist_lowest_z_m(x, a, self.bands_m, self.rod_length_m) >= self.floor_z_m - 1e-12
+        if self.boundary is not None:
+            need = self.gap_m + self.slack_m
+            for t0, t1, rho in self.bands_m:
                 ok &= self._off_estimate(x, a, t0, t1, rho, need)
         return ok
 
