@@ -148,8 +148,68 @@ def test_a_level_finger_under_the_deck_is_refused_for_its_wrist_not_its_rod():
 def test_the_bands_parameter_is_checked():
     assert bands_from_flat([0.0, 0.1, 0.05]) == ((0.0, 0.1, 0.05),)
     for bad in ([], [0.0, 0.1], [0.1, 0.05, 0.02], [-0.01, 0.1, 0.02], [0.0, 0.1, -0.02]):
-        with pytest.raises(ValueError, match="tilt_wrist_bands_m"):
-            bands_from_flat(bad, "tilt_wrist_bands_m")
+        with pytest.raises(ValueError, match="wrist_bands_m"):
+            bands_from_flat(bad, "wrist_bands_m")
     from tactile_planner.planner import TouchPlanner
-    with pytest.raises(ValueError, match="tilt_wrist_bands_m"):
-        TouchPlanner.from_params({"mode": "3d", "tilt_wrist_bands_m": [0.0, 0.1]}, seed=0)
+    with pytest.raises(ValueError, match="wrist_bands_m"):
+        TouchPlanner.from_params({"mode": "3d", "wrist_bands_m": [0.0, 0.1]}, seed=0)
+
+
+def _tower_graph(bands=PANDA_WRIST_BANDS_M, gap=0.01):
+    return build_free_graph(_box_lattice(), MARGIN, shell_m=0.03, min_z_m=0.015, shaft_length_m=LENGTH,
+                            shaft_clearance_m=PATH_NEED, wrist_bands_m=bands, wrist_gap_m=gap)
+
+
+def test_a_vertical_fingers_wrist_keeps_off_an_object_taller_than_the_rod():
+    graph = _tower_graph()
+    slack = 0.5 * float(np.linalg.norm(graph.lattice.spacing_m))
+    cell = float(np.max(graph.lattice.spacing_m))
+    rng = np.random.default_rng(2)
+    n = 600
+    tips = np.column_stack([rng.uniform(0.36, 0.64, n), rng.uniform(-0.14, 0.14, n), rng.uniform(0.015, 0.12, n)])
+    got = graph.wrist_clear(tips)
+    exact = np.array([min(box_sdf(_cylinder_samples(x, [0.0, 0.0, 1.0], *b), *TOWER).min()
+                          for b in PANDA_WRIST_BANDS_M) for x in tips])
+    assert not got[exact < 0].any()  # the wrist in the tower: refused
+    assert got[exact >= 0.01 + 2 * slack + 2 * cell].all()  # clear of it with room: free
+    assert (exact < 0).sum() > 20 and (exact > 0.05).sum() > 20
+    # the graph's nodes obey the same floor; without the bands the tower's foot is free
+    free_xyz = graph.lattice.grid_xyz()[graph.free.ravel()]
+    assert graph.wrist_clear(free_xyz).all()
+    bare = build_free_graph(_box_lattice(), MARGIN, shell_m=0.03, min_z_m=0.015, shaft_length_m=LENGTH,
+                            shaft_clearance_m=PATH_NEED)
+    assert bare.wrist_floor_m is None and bare.free.sum() > graph.free.sum()
+
+
+def test_an_object_lower_than_the_rod_leaves_the_graph_as_it_was():
+    kw = dict(shell_m=0.03, min_z_m=0.015, shaft_length_m=LENGTH, shaft_clearance_m=PATH_NEED)
+    with_wrist = build_free_graph(mushroom_lattice(), MARGIN, wrist_bands_m=PANDA_WRIST_BANDS_M, wrist_gap_m=0.01,
+                                  **kw)
+    without = build_free_graph(mushroom_lattice(), MARGIN, **kw)
+    assert with_wrist.wrist_floor_m is None  # its deck's top, 12 cm, is under any wrist above the floor
+    np.testing.assert_array_equal(with_wrist.free, without.free)
+
+
+def test_the_planner_refuses_a_touch_at_the_foot_of_a_tower_for_the_wrist():
+    from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, VARIANCE_MAP_DTYPE
+    from tactile_planner.planner import SHAFT_REASON, TouchPlanner
+    from test_shaft import SHAFT
+
+    lat = _box_lattice()
+    pts = lat.grid_xyz()
+    rows = np.zeros(len(pts) + 1, VARIANCE_MAP_DTYPE)
+    rows["x"][:-1], rows["y"][:-1], rows["z"][:-1] = pts.T
+    rows["mean"][:-1], rows["variance"], rows["kind"][:-1] = lat.mean_m.ravel(), 1e-4, KIND_LATTICE
+    # a candidate on the tower's side 3 cm up: the rod clears the wall, link 7 would be in the tower
+    rows["x"][-1], rows["y"][-1], rows["z"][-1] = TOWER[1][0], 0.0, 0.03
+    rows["normal_x"][-1], rows["kind"][-1] = 1.0, KIND_CANDIDATE
+    params = {"mode": "3d", "strategy": "uncertainty", "support_gap_m": 0.0, "foot_probe_gap_m": 0.0,
+              "search_quantile": 0.0, **SHAFT}
+    tip = np.array([0.62, 0.0, 0.05])
+    # a wrist no wider than the rod's line: the rod alone fits beside the wall
+    res = TouchPlanner.from_params({**params, "wrist_bands_m": [0.0, 0.001, 0.0], "wrist_gap_m": 0.0},
+                                   seed=0).plan(rows, tip)
+    assert res.ok, res.message
+    planner = TouchPlanner.from_params(params, seed=0)
+    res = planner.plan(rows, tip)
+    assert not res.ok and planner.last_why[SHAFT_REASON][0]

@@ -21,7 +21,7 @@ surface and the vertical rod above the tip (the planner's ``shaft_length_m``,
 into the object (a collision on a real rig). For a tilted finger, the same for its wrist
 (:meth:`Evaluator.wrist_clearance_m`): the smallest true sdf, or height over the table, on the cylinders
 that hold the simulated Panda's link 7 and link 6 (:data:`tactile_common.wrist.PANDA_WRIST_BANDS_M`,
-whatever the planner's ``tilt_wrist_bands_m``) along the tilted part of the track.
+whatever the planner's ``wrist_bands_m``) along the tilted part of the track.
 """
 
 from __future__ import annotations

@@ -109,6 +109,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                        "clearance (margin_m − tip_radius_m) from the estimated surface", {"gt": 0.0}),
     "shaft_gap_m": (0.002, "3D: on an approach or a slide, where the tip meets the surface, the rod keeps its "
                     "radius plus this from the estimated surface", {"ge": 0.0}),
+    "wrist_bands_m": (list(PANDA_WRIST_BANDS_FLAT_M),
+                      "3D (with shaft_clear): the links behind the flange as cylinders about the finger axis, "
+                      "[t0, t1, radius, ...]: from t0 to t1 behind the flange, of that radius; kept off the "
+                      "estimate (a vertical finger's, beside an object taller than the rod) and, tilted, off the "
+                      "table (tactile_planner.wrist; default: the Panda's link 7 and link 6)"),
+    "wrist_gap_m": (0.01, "3D: the clearance the wrist keeps from the estimated object", {"ge": 0.0}),
     "tilt_max_rad": (0.0, "3D pokes: a candidate the vertical finger cannot touch (its rod would enter the estimate, "
                      "or the surface faces down) may be touched with the finger tilted up to this angle from "
                      "vertical, inserted along its own axis (tactile_planner.tilt; docs/planner.md, \"The tilted "
@@ -117,11 +123,6 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                           "(where it turns) to the pre-touch point", {"gt": 0.0}),
     "tilt_min_flange_z_m": (0.10, "3D: a tilted finger keeps its flange (the rod's far end) at least this high "
                             "above the table at the pre-touch point: the wrist is wider than the rod", {"ge": 0.0}),
-    "tilt_wrist_bands_m": (list(PANDA_WRIST_BANDS_FLAT_M),
-                           "3D: the links behind the flange as cylinders about the finger axis, [t0, t1, radius, ...]: "
-                           "from t0 to t1 behind the flange, of that radius; a tilted finger keeps them off the table "
-                           "and the estimate (tactile_planner.wrist; default: the Panda's link 7 and link 6)"),
-    "tilt_wrist_gap_m": (0.01, "3D: the clearance a tilted finger's wrist keeps from the estimated object", {"ge": 0.0}),
     "tilt_turn_s_per_rad": (6.0, "3D: robot time a tilted finger takes to turn, per radian of tilt (each touch turns "
                             "there and back; the commander's plans for the Panda: 4.8–8 s/rad over 30–75°)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
@@ -225,7 +226,7 @@ class TouchPlanner:
             raise ValueError(f"clearance must be one of {CLEARANCES}, got '{p['clearance']}'")
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
-        bands_from_flat(p["tilt_wrist_bands_m"], "tilt_wrist_bands_m")  # ValueError on a malformed list
+        bands_from_flat(p["wrist_bands_m"], "wrist_bands_m")  # ValueError on a malformed list
         if p["info_travel_per"] not in INFO_TRAVEL_PER:
             raise ValueError(f"info_travel_per must be one of {INFO_TRAVEL_PER}, got '{p['info_travel_per']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
@@ -368,13 +369,22 @@ class TouchPlanner:
         skin = max(float(p["margin_m"]) - float(p["tip_radius_m"]), 0.0)
         return float(p["shaft_length_m"]), float(p["shaft_radius_m"]) + skin
 
+    def _wrist_graph_params(self, dim: int) -> tuple[tuple, float]:
+        """(bands, gap) of the wrist behind the flange for :func:`build_free_graph` (3D with the shaft)."""
+        p = self.params
+        if dim != 3 or not bool(p["shaft_clear"]):
+            return (), 0.0
+        return bands_from_flat(p["wrist_bands_m"], "wrist_bands_m"), float(p["wrist_gap_m"])
+
     def _shaft_check(self, graph, tip_radius_m: float):
         """Where the tip meets the surface (approach, slide): a function of (M, 3) tip centres, True where the
-        rod above keeps ``shaft_radius_m + shaft_gap_m`` from the estimated surface; None without a shaft."""
+        rod above keeps ``shaft_radius_m + shaft_gap_m`` from the estimated surface and the wrist above it
+        its ``wrist_gap_m``; None without a shaft."""
         if graph.shaft_field_m is None:
             return None
         need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
-        return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
+        # the rod starts at the tip's top
+        return lambda x: (graph.rod_clearance_m(x, tip_radius_m) >= need) & graph.wrist_clear(x)
 
     def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
                         normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
@@ -394,9 +404,9 @@ class TouchPlanner:
         out = TiltedEntries(np.full((m, 3), np.nan), np.full((m, 3), np.nan), np.full(m, np.nan))
         if ask.any():
             skin = max(float(p["margin_m"]) - tip_radius_m, 0.0)
-            wrist = WristCheck.on_lattice(graph.lattice, bands_from_flat(p["tilt_wrist_bands_m"], "tilt_wrist_bands_m"),
+            wrist = WristCheck.on_lattice(graph.lattice, bands_from_flat(p["wrist_bands_m"], "wrist_bands_m"),
                                           float(graph.shaft_length_m), self._min_tip_z_m(3) - tip_radius_m,
-                                          float(p["tilt_wrist_gap_m"]))  # the floor: table + table margin
+                                          float(p["wrist_gap_m"]))  # the floor: table + table margin
             got = tilted_entries(graph, pretouch[ask], target[ask] + tip_radius_m * normal[ask], normal[ask],
                                  tip_radius_m, float(p["shaft_radius_m"]) + float(p["shaft_gap_m"]),
                                  float(p["shaft_radius_m"]) + skin, tilt,
@@ -533,7 +543,7 @@ class TouchPlanner:
                                  float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]),
                                  finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0,
                                  float(p["narrow_penalty"]) if dim == 2 else 0.0,
-                                 *self._shaft_graph_params(dim))
+                                 *self._shaft_graph_params(dim), *self._wrist_graph_params(dim))
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:
