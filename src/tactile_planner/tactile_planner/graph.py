@@ -59,7 +59,6 @@ from scipy.special import ndtr
 from tactile_common.touch_geometry import rod_points
 
 from .maps import MapLattice
-from .wrist import vertical_wrist_floor_m
 
 
 @dataclass
@@ -79,8 +78,6 @@ class FreeSpaceGraph:
         clearance_field_m: the clearance c on the lattice (lattice shape, m; see the module docstring).
         shaft_field_m, shaft_length_m: 3D with the finger's shaft: the clearance the rod is checked against
             (lattice shape, m: c before the rod's term) and the rod's length; None and 0 without.
-        wrist_floor_m: 3D, (nx, ny): per lattice column the height a vertical finger's tip must stay above
-            for its wrist to clear the estimate (tactile_planner.wrist.vertical_wrist_floor_m); None: no limit.
     """
 
     lattice: MapLattice
@@ -95,17 +92,6 @@ class FreeSpaceGraph:
     finger_m: float | None = None
     shaft_field_m: np.ndarray | None = None
     shaft_length_m: float = 0.0
-    wrist_floor_m: np.ndarray | None = None
-
-    def wrist_clear(self, p_xyz: np.ndarray) -> np.ndarray:
-        """(M,) bool: a vertical finger's wrist clears the estimate at (M, 3) tip centres (the nearest
-        column's floor: the floor's radius holds the half cell diagonal); True without a floor."""
-        p = np.asarray(p_xyz, float).reshape(-1, 3)
-        if self.wrist_floor_m is None:
-            return np.ones(len(p), bool)
-        idx = [np.clip(np.rint((p[:, k] - ax[0]) / (ax[1] - ax[0])).astype(np.int64), 0, len(ax) - 1)
-               for k, ax in enumerate(self.lattice.axes[:2])]
-        return p[:, 2] > self.wrist_floor_m[idx[0], idx[1]]
 
     def rod_clearance_m(self, p_xyz: np.ndarray, start_m: float, step_m: float = 0.004,
                         axis_xyz: np.ndarray | None = None, length_m: float | None = None) -> np.ndarray:
@@ -215,11 +201,9 @@ CLEARANCES = ("distance", "mean")
 _THREADED_QUERY_MIN = 32768  # lattice nodes from which the surface-distance query runs on every core
 
 
-def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray:
-    """Signed distance (lattice shape, m; < 0 inside) from each lattice node to the zero level
-    set of the lattice mean: the nearest zero crossing of μ on an axis edge (linear
-    interpolation), sign of μ. Nodes farther than ``max_m`` (or all, when μ has no zero
-    crossing) get ±``max_m``: finite, so that the field interpolates."""
+def zero_crossings_m(lattice: MapLattice) -> np.ndarray:
+    """(K, dim) points where the lattice mean μ changes sign along an axis edge (linear interpolation
+    between the two nodes): samples of the estimate's zero level set, world frame."""
     mu = lattice.mean_m
     pts = []
     for k, ax in enumerate(lattice.axes):
@@ -235,10 +219,20 @@ def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray
         coords = [lattice.axes[j][idx[j]] for j in range(lattice.dim)]
         coords[k] = coords[k] + t * (ax[1] - ax[0])
         pts.append(np.stack(coords, axis=1))
+    return np.concatenate(pts) if pts else np.zeros((0, lattice.dim))
+
+
+def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray:
+    """Signed distance (lattice shape, m; < 0 inside) from each lattice node to the zero level
+    set of the lattice mean: the nearest zero crossing of μ on an axis edge (linear
+    interpolation), sign of μ. Nodes farther than ``max_m`` (or all, when μ has no zero
+    crossing) get ±``max_m``: finite, so that the field interpolates."""
+    mu = lattice.mean_m
+    crossings = zero_crossings_m(lattice)
     sign = np.where(mu < 0, -1.0, 1.0)
-    if not pts:
+    if not len(crossings):
         return sign * max_m
-    tree = cKDTree(np.concatenate(pts))
+    tree = cKDTree(crossings)
     grid = lattice.grid_xyz()[:, : lattice.dim]
     # Threads (each node's answer is the same on any number of cores) pay on the 3D lattice (48³:
     # 83 -> 47 ms on 2 cores), not on a 2D one (128²: the same within noise).
@@ -368,8 +362,6 @@ def build_free_graph(
     narrow_penalty: float = 0.0,
     shaft_length_m: float = 0.0,
     shaft_clearance_m: float = 0.0,
-    wrist_bands_m: tuple = (),
-    wrist_gap_m: float = 0.0,
 ) -> FreeSpaceGraph:
     """Free-space graph of a lattice (see the module docstring for the rules).
 
@@ -392,9 +384,6 @@ def build_free_graph(
             (nothing with the finger's room is cut off).
         shaft_length_m, shaft_clearance_m: 3D, ``shaft_length_m > 0``: a node is free only when the column
             above it up to ``shaft_length_m`` keeps clearance ``shaft_clearance_m`` too (module docstring).
-        wrist_bands_m, wrist_gap_m: 3D with the shaft: the links behind the flange (tactile_common.wrist);
-            a node is free only where a vertical finger's wrist keeps ``wrist_gap_m`` from the estimate
-            (tactile_planner.wrist.vertical_wrist_floor_m). () = not checked.
     """
     mu = lattice.mean_m
     if clearance == "distance":
@@ -413,13 +402,9 @@ def build_free_graph(
         allowed &= (lattice.axes[2] >= min_z_m)[None, None, :]
     if shell_m > 0:
         allowed &= cl <= margin_m + shell_m
-    rod_field = wrist_floor = None
+    rod_field = None
     if lattice.dim == 3 and shaft_length_m > 0:  # the rod above the tip: free only under a clear column
         rod_field = cl
-        if wrist_bands_m:
-            wrist_floor = vertical_wrist_floor_m(lattice, wrist_bands_m, shaft_length_m, wrist_gap_m, min_z_m)
-            if wrist_floor is not None:
-                allowed &= lattice.axes[2][None, None, :] > wrist_floor[:, :, None]
         cl = np.minimum(cl, shaft_column_min(cl, lattice.axes[2], shaft_length_m) - shaft_clearance_m + margin_m)
     finger_m = None
     if narrow_penalty > 0 and bridge_clearance_m < margin_m:  # no bridge: nothing with the finger's room is cut off
@@ -443,5 +428,4 @@ def build_free_graph(
         min_z_m=float(min_z_m) if lattice.dim == 3 else -np.inf,
         clearance_field_m=None if clearance == "mean" and rod_field is None else cl, finger_m=finger_m,
         shaft_field_m=rod_field, shaft_length_m=float(shaft_length_m) if rod_field is not None else 0.0,
-        wrist_floor_m=wrist_floor,
     )

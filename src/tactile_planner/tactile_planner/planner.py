@@ -110,11 +110,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
     "shaft_gap_m": (0.002, "3D: on an approach or a slide, where the tip meets the surface, the rod keeps its "
                     "radius plus this from the estimated surface", {"ge": 0.0}),
     "wrist_bands_m": (list(PANDA_WRIST_BANDS_FLAT_M),
-                      "3D (with shaft_clear): the links behind the flange as cylinders about the finger axis, "
-                      "[t0, t1, radius, ...]: from t0 to t1 behind the flange, of that radius; kept off the "
-                      "estimate (a vertical finger's, beside an object taller than the rod) and, tilted, off the "
-                      "table (tactile_planner.wrist; default: the Panda's link 7 and link 6)"),
-    "wrist_gap_m": (0.01, "3D: the clearance the wrist keeps from the estimated object", {"ge": 0.0}),
+                      "3D: the links behind the flange as cylinders about the finger axis, [t0, t1, radius, ...]: "
+                      "from t0 to t1 behind the flange, of that radius; a tilted finger keeps them off the table "
+                      "and the estimate (tactile_planner.wrist; default: the Panda's link 7 and link 6)"),
+    "wrist_gap_m": (0.01, "3D: the clearance a tilted finger's wrist keeps from the estimated object", {"ge": 0.0}),
     "tilt_max_rad": (0.0, "3D pokes: a candidate the vertical finger cannot touch (its rod would enter the estimate, "
                      "or the surface faces down) may be touched with the finger tilted up to this angle from "
                      "vertical, inserted along its own axis (tactile_planner.tilt; docs/planner.md, \"The tilted "
@@ -369,22 +368,13 @@ class TouchPlanner:
         skin = max(float(p["margin_m"]) - float(p["tip_radius_m"]), 0.0)
         return float(p["shaft_length_m"]), float(p["shaft_radius_m"]) + skin
 
-    def _wrist_graph_params(self, dim: int) -> tuple[tuple, float]:
-        """(bands, gap) of the wrist behind the flange for :func:`build_free_graph` (3D with the shaft)."""
-        p = self.params
-        if dim != 3 or not bool(p["shaft_clear"]):
-            return (), 0.0
-        return bands_from_flat(p["wrist_bands_m"], "wrist_bands_m"), float(p["wrist_gap_m"])
-
     def _shaft_check(self, graph, tip_radius_m: float):
         """Where the tip meets the surface (approach, slide): a function of (M, 3) tip centres, True where the
-        rod above keeps ``shaft_radius_m + shaft_gap_m`` from the estimated surface and the wrist above it
-        its ``wrist_gap_m``; None without a shaft."""
+        rod above keeps ``shaft_radius_m + shaft_gap_m`` from the estimated surface; None without a shaft."""
         if graph.shaft_field_m is None:
             return None
         need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
-        # the rod starts at the tip's top
-        return lambda x: (graph.rod_clearance_m(x, tip_radius_m) >= need) & graph.wrist_clear(x)
+        return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
 
     def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
                         normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
@@ -543,7 +533,7 @@ class TouchPlanner:
                                  float(p["min_tip_z_m"]), p_in if p_in < 1.0 else None, str(p["clearance"]),
                                  finger_m, float(p["pocket_link_m"]) if dim == 2 else 0.0,
                                  float(p["narrow_penalty"]) if dim == 2 else 0.0,
-                                 *self._shaft_graph_params(dim), *self._wrist_graph_params(dim))
+                                 *self._shaft_graph_params(dim))
         self.last_graph = graph
         base = dict(n_candidates=m, n_excluded=int(excluded.sum()), n_nodes=graph.n_nodes)
         if graph.n_nodes == 0:

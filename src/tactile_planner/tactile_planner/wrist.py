@@ -7,13 +7,7 @@ beside an object taller than the rod they would not be clear); a tilted one brin
 the table and the object, which the flange-height rule alone (``tilt_min_flange_z_m``) does not see:
 level, with the flange 10 cm up, link 6 would reach 4 cm into the table.
 
-A vertical finger (:func:`vertical_wrist_floor_m`): a tip at (x, y, z) is refused where an estimate node
-inside (μ < 0) lies within ρ + ``gap_m`` + the half cell diagonal of (x, y) horizontally and higher than
-z + L + t0 − ``gap_m`` − that slack, for some band: per lattice column the lowest tip height that clears
-(the top inside node of each column within reach is what counts; one above the band counts too: an
-object over the wrist is no place for it either). Only an estimate taller than about the rod reaches it.
-
-World frame, metres. A tilted pose (tip centre x, finger axis a) is clear when
+World frame, metres. A pose (tip centre x, finger axis a) is clear when
 
 - the table: the cylinders' lowest point (:func:`tactile_common.wrist.wrist_lowest_z_m`) is at or
   above ``floor_z_m`` (the planner's table + table margin);
@@ -32,34 +26,7 @@ from scipy.spatial import cKDTree
 
 from tactile_common.wrist import PANDA_WRIST_BANDS_M, bands_from_flat, wrist_lowest_z_m
 
-__all__ = ["PANDA_WRIST_BANDS_M", "WristCheck", "band_points", "bands_from_flat", "vertical_wrist_floor_m"]
-
-
-def vertical_wrist_floor_m(lattice, bands_m: tuple, rod_length_m: float, gap_m: float,
-                           min_z_m: float = -np.inf) -> Optional[np.ndarray]:
-    """(nx, ny) per lattice column of a 3D estimate, the height a vertical finger's tip centre must stay
-    above for its wrist (``bands_m`` behind the flange, ``rod_length_m`` above the tip) to keep ``gap_m``
-    + the half cell diagonal from the estimate (module docstring; −inf: nothing limits); None when no
-    inside node is high enough to limit a tip above ``min_z_m`` (an estimate lower than the rod)."""
-    inside = np.asarray(lattice.mean_m) < 0
-    z = lattice.axes[2]
-    top = np.where(inside.any(axis=2), z[np.clip(inside.shape[2] - 1 - np.argmax(inside[:, :, ::-1], axis=2),
-                                               0, len(z) - 1)], -np.inf)  # (nx, ny) highest inside node
-    slack = 0.5 * float(np.linalg.norm(lattice.spacing_m))
-    lowest_t0 = min(b[0] for b in bands_m)
-    high = top - rod_length_m - lowest_t0 + gap_m + slack > min_z_m
-    if not high.any():
-        return None
-    gx, gy = np.meshgrid(lattice.axes[0], lattice.axes[1], indexing="ij")
-    cols = np.column_stack([gx.ravel(), gy.ravel()])
-    tree = cKDTree(cols[high.ravel()])
-    h = top.ravel()[high.ravel()]
-    floor = np.full(len(cols), -np.inf)
-    for t0, _, rho in bands_m:
-        near = tree.query_ball_point(cols, rho + gap_m + slack)
-        reach = np.array([h[n].max() if n else -np.inf for n in near])
-        floor = np.maximum(floor, reach - rod_length_m - t0 + gap_m + slack)
-    return floor.reshape(gx.shape)
+__all__ = ["PANDA_WRIST_BANDS_M", "WristCheck", "band_points", "bands_from_flat"]
 
 
 def band_points(tip_xyz: np.ndarray, axis_xyz: np.ndarray, bands_m: tuple, rod_length_m: float,
