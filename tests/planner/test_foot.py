@@ -147,6 +147,20 @@ def test_under_an_overhanging_cap_the_rod_check_to_the_approach_end_refuses_the_
     assert (sdf(rod.reshape(-1, 3)).reshape(len(contact), -1).min(axis=1) >= 0.007).all()
 
 
+def test_the_probes_rod_is_measured_by_distance_not_by_a_mean_flatter_than_one():
+    """A GP mean off its data is rarely a distance: |∇μ| < 1 reads the rod at the probe's end (its radius
+    and gap, 7 mm, outside the wall's line) nearer than it is. With μ = 0.6 × the exact distance the
+    probes are still taken (under a cap they are still refused: the test above, which runs the same check)."""
+    lat = _lattice(lambda p: 0.6 * box_sdf(p, FLOATING["lo"], FLOATING["hi"]))
+    cands = _walls(0.46, 0.54, -0.03, 0.03, [0.05, 0.07])
+    res = _planner(0.01).plan(_map(lat, cands), np.array([0.62, 0.0, 0.12]))
+    assert res.ok and res.index >= len(cands), res.message
+    end = res.target_xyz + (0.01 - 0.03) * res.normal_xyz
+    rod = end + np.outer(np.linspace(0.01, 0.16, 76), [0, 0, 1])
+    assert box_sdf(rod, FLOATING["lo"], FLOATING["hi"]).min() >= 0.007 - 1e-6  # exact: clear by rod + gap
+    assert 0.6 * box_sdf(rod, FLOATING["lo"], FLOATING["hi"]).min() < 0.007  # what μ would have said
+
+
 def test_slides_get_no_foot_probes():
     """A slide starts on the estimated surface; a foot probe's target is off it."""
     lat = _lattice(lambda p: box_sdf(p, FLOATING["lo"], FLOATING["hi"]))

@@ -19,12 +19,13 @@ from typing import Any, Mapping
 
 import numpy as np
 import scipy.sparse.csgraph as csg
+from scipy.spatial import cKDTree
 
 from tactile_common.finger_axis import EZ
 from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
-from tactile_common.touch_geometry import MotionModel, TouchGeometry
+from tactile_common.touch_geometry import MotionModel, TouchGeometry, rod_points
 
-from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
+from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph, zero_crossings_m
 from .foot import foot_probes
 from .maps import Candidates, MapError, parse_variance_map
 from .pocket import closer_pretouch, pocket_entries
@@ -376,6 +377,25 @@ class TouchPlanner:
         need = float(self.params["shaft_radius_m"]) + float(self.params["shaft_gap_m"])
         return lambda x: graph.rod_clearance_m(x, tip_radius_m) >= need  # the rod starts at the tip's top
 
+    def _rod_clear_by_distance(self, graph, seg_xyz: np.ndarray, tip_radius_m: float) -> np.ndarray:
+        """(P,) bool for (P, S, 3) tip centres along P approaches: the rod above every one keeps
+        ``shaft_radius_m + shaft_gap_m`` from the estimate's zero level set by Euclidean distance (its
+        lattice edge crossings; inside: negative).
+        For a foot probe, whose rod ends its radius and gap outside a wall's line: μ there reads a few mm
+        less than the distance (|∇μ| < 1 off the data), which refused nearly every probe of a wall."""
+        p = self.params
+        need = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
+        P, S = seg_xyz.shape[:2]
+        tips = seg_xyz.reshape(-1, 3)
+        rod = rod_points(tips, tip_radius_m, graph.shaft_length_m, 0.004)  # (P·S, R, 3)
+        crossings = zero_crossings_m(graph.lattice)
+        if not len(crossings):
+            return np.ones(P, bool)
+        d, _ = cKDTree(crossings).query(rod.reshape(-1, 3), distance_upper_bound=need + 1e-3)
+        inside = graph.shaft_field_at(rod.reshape(-1, 3)) < 0
+        clear = (~inside & (d >= need)).reshape(P, S, -1).all(axis=(1, 2))
+        return clear
+
     def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
                         normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
         """Tilted entries (tactile_planner.tilt) for the candidates only the vertical finger rules out (its rod
@@ -554,6 +574,9 @@ class TouchPlanner:
             blocked = np.zeros(m, bool)
             if ask.any():
                 blocked[ask] = ~shaft_ok(seg[ask].reshape(-1, 3)).reshape(seg[ask].shape[:2]).all(axis=1)
+            probe = ask & (rod_past_contact_m > 0) if rod_past_contact_m is not None else np.zeros(m, bool)
+            if probe.any():  # their rod ends a few mm outside a wall: measured as a distance, not by μ
+                blocked[probe] = ~self._rod_clear_by_distance(graph, seg[probe], geometry.tip_radius_m)
             why[SHAFT_REASON] = blocked
             hard |= blocked
             excluded |= blocked
