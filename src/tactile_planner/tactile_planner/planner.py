@@ -22,8 +22,8 @@ import scipy.sparse.csgraph as csg
 from scipy.spatial import cKDTree
 
 from tactile_common.finger_axis import EZ
-from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 from tactile_common.touch_geometry import MotionModel, TouchGeometry, rod_points
+from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph, zero_crossings_m
 from .foot import foot_probes
@@ -380,9 +380,9 @@ class TouchPlanner:
     def _rod_clear_by_distance(self, graph, seg_xyz: np.ndarray, tip_radius_m: float) -> np.ndarray:
         """(P,) bool for (P, S, 3) tip centres along P approaches: the rod above every one keeps
         ``shaft_radius_m + shaft_gap_m`` from the estimate's zero level set by Euclidean distance (its
-        lattice edge crossings; inside: negative).
-        For a foot probe, whose rod ends its radius and gap outside a wall's line: μ there reads a few mm
-        less than the distance (|∇μ| < 1 off the data), which refused nearly every probe of a wall."""
+        lattice edge crossings; inside: negative). For a foot probe, whose rod ends its radius and gap
+        outside a wall's line: μ there reads a few mm less than the distance (|∇μ| < 1 off the data),
+        which refused nearly every probe of a wall."""
         p = self.params
         need = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
         P, S = seg_xyz.shape[:2]
@@ -393,8 +393,7 @@ class TouchPlanner:
             return np.ones(P, bool)
         d, _ = cKDTree(crossings).query(rod.reshape(-1, 3), distance_upper_bound=need + 1e-3)
         inside = graph.shaft_field_at(rod.reshape(-1, 3)) < 0
-        clear = (~inside & (d >= need)).reshape(P, S, -1).all(axis=(1, 2))
-        return clear
+        return (~inside & (d >= need)).reshape(P, S, -1).all(axis=(1, 2))
 
     def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
                         normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
