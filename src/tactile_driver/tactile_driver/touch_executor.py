@@ -259,7 +259,7 @@ class TouchExecutor:
             return self._done(OUTCOME_ABORTED, f"path: {self.arm.last_task.reason}")
         self._state = "path"
 
-    def _start_approach(self, q_start=None) -> None:
+    def _start_approach(self, q_start: Optional[np.ndarray] = None) -> None:
         """The guarded approach from the pre-touch point along the goal's axis (a slide's: its own depth);
         ``q_start``: planned from these joints (a repeat: where the retract took the arm back to)."""
         depth = self.slide_approach_length_m if self._req.is_slide else self.approach_length_m

@@ -226,7 +226,7 @@ class TouchPlanner:
             raise ValueError(f"clearance must be one of {CLEARANCES}, got '{p['clearance']}'")
         if p["score_form"] not in SCORE_FORMS:
             raise ValueError(f"score_form must be one of {SCORE_FORMS}, got '{p['score_form']}'")
-        bands_from_flat(p["wrist_bands_m"], "wrist_bands_m")  # ValueError on a malformed list
+        wrist_bands_m = bands_from_flat(p["wrist_bands_m"], "wrist_bands_m")  # ValueError on a malformed list
         if p["info_travel_per"] not in INFO_TRAVEL_PER:
             raise ValueError(f"info_travel_per must be one of {INFO_TRAVEL_PER}, got '{p['info_travel_per']}'")
         for k in ("margin_m", "standoff_m", "tip_radius_m", "tip_speed_mps", "approach_speed_mps",
@@ -238,6 +238,7 @@ class TouchPlanner:
         if float(p["margin_m"]) >= float(p["standoff_m"]) + float(p["tip_radius_m"]):
             raise ValueError("margin_m must be below standoff_m + tip_radius_m, or no pre-touch point is free")
         self.params = p
+        self.wrist_bands_m = wrist_bands_m  # ((t0, t1, radius), ...): the tilted finger's wrist
         self.seed = int(seed)
         self.backend = make_backend(p["backend"], float(p["cost_rate_per_m"]), float(p["max_rate_nats"]),
                                     str(p["solver"]), float(p["cg_rtol"]),
@@ -413,7 +414,7 @@ class TouchPlanner:
         out = TiltedEntries(np.full((m, 3), np.nan), np.full((m, 3), np.nan), np.full(m, np.nan))
         if ask.any():
             skin = max(float(p["margin_m"]) - tip_radius_m, 0.0)
-            wrist = WristCheck.on_lattice(graph.lattice, bands_from_flat(p["wrist_bands_m"], "wrist_bands_m"),
+            wrist = WristCheck.on_lattice(graph.lattice, self.wrist_bands_m,
                                           float(graph.shaft_length_m), self._min_tip_z_m(3) - tip_radius_m,
                                           float(p["wrist_gap_m"]))  # the floor: table + table margin
             got = tilted_entries(graph, pretouch[ask], target[ask] + tip_radius_m * normal[ask], normal[ask],
