@@ -6,6 +6,8 @@
   GPIS estimator), every candidate whose pre-touch point is clear of the estimated
   surface (by an independent brute-force distance to the estimator's own level set)
   is reachable, and the planner goes there, not back to the known sides.
+- In 3D with the cheap clearance (μ itself), the top of a tall estimate whose mean is
+  flat there is still reachable: the candidate's last segment is measured by distance.
 - A touch that lands a few millimetres from earlier contacts lowers the score of
   touching there again.
 - A plan that gives no goal says why in one line.
@@ -21,7 +23,9 @@ from tactile_gpis.estimator import ShapeEstimator, load_params as gpis_params
 from tactile_planner.graph import build_free_graph, surface_distance_m
 from tactile_planner.maps import parse_variance_map
 from tactile_planner.planner import TouchPlanner, load_params
-from tactile_planner.synthetic import sphere_map
+from tactile_planner.synthetic import WORKSPACE_3D, sphere_map
+
+from test_shaft import SHAFT, box_sdf
 
 ROOT = Path(__file__).resolve().parents[2]
 PLANNER_CONFIG = ROOT / "src/tactile_planner/config/soc_planner.yaml"
@@ -47,6 +51,10 @@ def test_distance_clearance_is_the_distance_where_the_mean_is_flat():
     band = (true > 0.01) & (true < 0.05)  # error O(h²/d): ≤ 0.14 mm from 10 mm out
     assert np.max(np.abs(d[band] - true[band])) < 2e-4
     assert np.all(d[true < -0.003] < 0)
+    g_mean = build_free_graph(lat, 0.015, 0.03, clearance="mean")
+    at = g_mean.surface_distance_at(grid)  # the same distance at any points, for a graph on μ
+    assert np.max(np.abs(at[band.ravel()] - true.ravel()[band.ravel()])) < 2e-4
+    assert np.all(at[true.ravel() < -0.003] < 0)
     g_dist = build_free_graph(lat, 0.015, 0.03, clearance="distance")
     g_mean = build_free_graph(lat, 0.015, 0.03, clearance="mean")
     # free = 15 mm to 45 mm from the circle, by distance; by the flat mean 30 mm to 90 mm
@@ -107,6 +115,65 @@ def test_unconfirmed_surface_with_free_space_around_is_reachable_and_chosen():
     contacts = np.array([[x, 0.03] for x in np.linspace(0.45, 0.55, 7)]
                         + [[0.485, y] for y in np.linspace(-0.055, -0.005, 4)])
     assert np.min(np.linalg.norm(contacts - res.target_xyz[:2], axis=1)) > 0.01
+
+
+def test_3d_the_top_of_a_flat_mean_is_reachable_with_the_mean_clearance():
+    """A 14 cm tower whose top no contact has confirmed: the GP mean there is flat, μ = 0.6 × the exact
+    distance (box_sdf, independent of the planner). Each top candidate's pre-touch point is 2 cm above it,
+    outside the 1.5 cm margin, but μ there reads 1.2 cm: the vase's estimate grew a dome the finger could
+    not reach, and the run ended at reachable IoU 0.57 (docs/benchmarks.md). By distance they are clear."""
+    lo, hi = (0.47, -0.03, 0.0), (0.53, 0.03, 0.15)
+    n = 48
+    axes = tuple(np.linspace(a, b, n) for a, b in WORKSPACE_3D)
+    pts = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    rows = np.zeros(len(pts), VARIANCE_MAP_DTYPE)
+    rows["x"], rows["y"], rows["z"] = pts.T
+    rows["mean"], rows["variance"] = 0.6 * box_sdf(pts, lo, hi), 1e-6
+    xy = np.array([[x, y] for x in (0.48, 0.50, 0.52) for y in (-0.02, 0.0, 0.02)])
+    top = np.zeros(len(xy), VARIANCE_MAP_DTYPE)
+    top["x"], top["y"], top["z"], top["normal_z"], top["variance"], top["kind"] = xy[:, 0], xy[:, 1], hi[2], 1.0, \
+        1e-3, 1
+    p = dict(mode="3d", clearance="mean", strategy="uncertainty", **SHAFT)
+    pre = np.column_stack([xy, np.full(len(xy), hi[2] + 0.02)])
+    assert (0.6 * box_sdf(pre, lo, hi) < 0.015).all()  # what μ says: inside the margin
+    res = planner(**p).plan(np.concatenate([rows, top]), np.array([0.40, 0.0, 0.20]))
+    assert res.ok, res.message
+    assert np.isfinite(res.travel_costs).all(), res.message
+    assert res.target_xyz[2] == pytest.approx(hi[2])
+    # the path keeps the margin from the true tower (its nodes by μ: farther still)
+    assert box_sdf(res.path_xyz[:-1], lo, hi).min() >= 0.015 - 1e-9
+
+
+def test_3d_a_tip_nearest_a_lone_free_node_joins_the_graph_where_the_candidates_are():
+    """A tower (exact distance) and, far from it, one lattice node whose μ dips into the shell's band: a free
+    node with no free neighbour, a component of one. A tip beside it used to join the graph there, every
+    candidate lay "in another free-space component than the tip", and the run ended (gen3d-018). It joins
+    the component that holds the candidates (a snap, said in the message)."""
+    lo, hi = (0.47, -0.03, 0.0), (0.53, 0.03, 0.08)
+    n = 48
+    axes = tuple(np.linspace(a, b, n) for a, b in WORKSPACE_3D)
+    pts = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    lone = np.array([axes[0][4], axes[1][40], axes[2][30]])  # (0.375, 0.105, 0.140): 11 cm from the tower
+    mu = box_sdf(pts, lo, hi)
+    mu -= (mu[np.argmin(np.linalg.norm(pts - lone, axis=1))] - 0.03) * np.exp(
+        -np.sum((pts - lone) ** 2, axis=1) / (2 * 0.0015 ** 2))
+    rows = np.zeros(len(pts), VARIANCE_MAP_DTYPE)
+    rows["x"], rows["y"], rows["z"] = pts.T
+    rows["mean"], rows["variance"] = mu, 1e-6
+    a = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    side = np.zeros(len(a), VARIANCE_MAP_DTYPE)  # candidates on the tower's walls, facing out
+    side["x"], side["y"], side["z"] = 0.5 + 0.03 * np.sign(np.cos(a)), 0.03 * np.sin(a), 0.05
+    side["normal_x"], side["variance"], side["kind"] = np.sign(np.cos(a)), 1e-4, 1
+    tip = lone + [0.002, 0.0, 0.0]
+    pl = planner(mode="3d", clearance="mean", strategy="uncertainty", **SHAFT)
+    res = pl.plan(np.concatenate([rows, side]), tip)
+    assert res.ok and res.index < len(side) and "search" not in res.message, res.message  # a candidate, no search
+    g = pl.last_graph
+    assert g.n_nodes > 1000
+    nearest = g.nearest_node(tip)
+    assert np.allclose(g.xyz[nearest], lone) and g.length_m[nearest].nnz == 0  # the lone node: no edges
+    assert "snapped" in res.message
+    assert not np.isclose(res.path_xyz, lone).all(axis=1).any()  # not by the lone node
 
 
 def _nearest(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -12,7 +12,9 @@ Clearance c(x) of the tip centre from the estimated object, on the lattice:
   the GP mean is flatter (|∇μ| < 1) and μ underestimates the distance, so a
   pre-touch point placed at a fixed distance along the normal falls inside
   the margin exactly on the parts of the surface the estimate has not
-  confirmed (docs/exploration.md, "Why the planner stalled").
+  confirmed (docs/exploration.md, "Why the planner stalled"). The planner
+  therefore measures a candidate's last segment, whatever the clearance, by
+  :meth:`FreeSpaceGraph.surface_distance_at`.
 
 A lattice node is free when c ≥ ``margin_m`` (optionally also P(inside) =
 Φ(−μ/σ) ≤ ``p_inside_max``), in 3D when its height is at least ``min_z_m``,
@@ -47,7 +49,7 @@ finger's shaft").
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -92,6 +94,7 @@ class FreeSpaceGraph:
     finger_m: float | None = None
     shaft_field_m: np.ndarray | None = None
     shaft_length_m: float = 0.0
+    _crossings: cKDTree | None = field(default=None, init=False, repr=False, compare=False)
 
     def rod_clearance_m(self, p_xyz: np.ndarray, start_m: float, step_m: float = 0.004,
                         axis_xyz: np.ndarray | None = None, length_m: float | None = None) -> np.ndarray:
@@ -174,17 +177,39 @@ class FreeSpaceGraph:
             mu = np.where(p[:, 2] >= self.min_z_m - 1e-12, mu, -np.inf)
         return mu
 
+    def surface_distance_at(self, p_xyz: np.ndarray, max_m: float = np.inf) -> np.ndarray:
+        """Signed Euclidean distance (m) from (M, 3) points to the estimate's zero level set: the nearest
+        zero crossing of μ on a lattice edge (:func:`zero_crossings_m`, found once per graph), negative
+        where the multilinear μ is; −inf below ``min_z_m`` in 3D, ±inf when μ has no crossing.
+        Unlike μ it is a distance off the data too, where the GP mean is flatter (|∇μ| < 1). Distances
+        beyond ``max_m`` read ±inf (a faster query)."""
+        lat = self.lattice
+        p = np.asarray(p_xyz, float).reshape(-1, 3)
+        if self._crossings is None:
+            self._crossings = cKDTree(zero_crossings_m(lat))
+        if self._crossings.n == 0:
+            d = np.full(len(p), np.inf)
+        else:
+            d, _ = self._crossings.query(p[:, : lat.dim], distance_upper_bound=max_m)
+        mu = RegularGridInterpolator(lat.axes, lat.mean_m, bounds_error=False, fill_value=np.inf)(p[:, : lat.dim])
+        d = np.where(mu < 0, -d, d)
+        if lat.dim == 3:
+            d = np.where(p[:, 2] >= self.min_z_m - 1e-12, d, -np.inf)
+        return d
+
     def segments_free(self, a_xyz: np.ndarray, b_xyz: np.ndarray, step_m: float | None = None,
-                      clearance_m: float | np.ndarray | None = None) -> np.ndarray:
+                      clearance_m: float | np.ndarray | None = None, euclidean: bool = False) -> np.ndarray:
         """For each segment a→b ((S, 3) each), whether all samples keep c ≥ ``clearance_m`` (a scalar or
-        one per segment; default the margin)."""
+        one per segment; default the margin); ``euclidean``: c is :meth:`surface_distance_at`, not the
+        graph's clearance field."""
         a = np.asarray(a_xyz, float).reshape(-1, 3)
         b = np.asarray(b_xyz, float).reshape(-1, 3)
         step = step_m if step_m is not None else float(np.min(self.lattice.spacing_m)) / 4.0
         n = int(np.ceil(np.max(np.linalg.norm(b - a, axis=1), initial=0.0) / step)) + 1
         t = np.linspace(0.0, 1.0, max(n, 2))
         pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
-        mu = self.clearance_m(pts.reshape(-1, 3)).reshape(len(a), -1)
+        field_at = self.surface_distance_at if euclidean else self.clearance_m
+        mu = field_at(pts.reshape(-1, 3)).reshape(len(a), -1)
         need = np.broadcast_to(np.asarray(self.margin_m if clearance_m is None else clearance_m, float), (len(a),))
         return np.all(mu >= need[:, None] - 1e-9, axis=1)
 

@@ -19,13 +19,12 @@ from typing import Any, Mapping
 
 import numpy as np
 import scipy.sparse.csgraph as csg
-from scipy.spatial import cKDTree
 
 from tactile_common.finger_axis import EZ
 from tactile_common.touch_geometry import MotionModel, TouchGeometry, rod_points
 from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 
-from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph, zero_crossings_m
+from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .foot import foot_probes
 from .maps import Candidates, MapError, parse_variance_map
 from .pocket import closer_pretouch, pocket_entries
@@ -387,14 +386,9 @@ class TouchPlanner:
         p = self.params
         need = float(p["shaft_radius_m"]) + float(p["shaft_gap_m"])
         P, S = seg_xyz.shape[:2]
-        tips = seg_xyz.reshape(-1, 3)
-        rod = rod_points(tips, tip_radius_m, graph.shaft_length_m, 0.004)  # (P·S, R, 3)
-        crossings = zero_crossings_m(graph.lattice)
-        if not len(crossings):
-            return np.ones(P, bool)
-        d, _ = cKDTree(crossings).query(rod.reshape(-1, 3), distance_upper_bound=need + 1e-3)
-        inside = graph.shaft_field_at(rod.reshape(-1, 3)) < 0
-        return (~inside & (d >= need)).reshape(P, S, -1).all(axis=(1, 2))
+        rod = rod_points(seg_xyz.reshape(-1, 3), tip_radius_m, graph.shaft_length_m, 0.004)  # (P·S, R, 3)
+        d = graph.surface_distance_at(rod.reshape(-1, 3), max_m=need + 1e-3)
+        return (d >= need).reshape(P, S, -1).all(axis=(1, 2))
 
     def _tilted_entries(self, graph, why: dict, valid: np.ndarray, pretouch: np.ndarray, target: np.ndarray,
                         normal: np.ndarray, tip_radius_m: float) -> TiltedEntries | None:
@@ -596,6 +590,9 @@ class TouchPlanner:
         if tilted is not None:  # the insertion and the way back out are part of the touch's travel
             term_len = term_len + np.where(tilted.ok, 2.0 * tilted.insert_m, 0.0)
         _, comp = csg.connected_components(graph.length_m, directed=False)
+        joined = _join_where_the_candidates_are(graph, comp, tip, start, term_node[valid & ~hard & (term_node >= 0)],
+                                                finger_m)
+        snapped, start = snapped or joined != start, joined
         why["invalid"] = ~valid
         why["no free pre-touch point"] = term_node < 0
         other = np.where(term_node >= 0, comp[np.maximum(term_node, 0)] != comp[start], False)
@@ -603,8 +600,11 @@ class TouchPlanner:
         reachable = valid & ~hard & (term_node >= 0) & ~other
         if reachable.any():
             node = np.maximum(term_node, 0)  # from a narrow node the finger's room will do
+            # measured by distance: with clearance "mean", μ under-reads it off the data (graph.py), so the
+            # pre-touch points of the surface the estimate has not confirmed fell inside the margin
             why["last segment not free"] = reachable & ~graph.segments_free(
-                graph.xyz[node], travel_end, clearance_m=graph.node_clearance_m(node))
+                graph.xyz[node], travel_end, clearance_m=graph.node_clearance_m(node),
+                euclidean=str(p["clearance"]) == "mean")
             reachable &= ~why["last segment not free"]
         # a pre-touch point in a pocket of the estimate: entered along its approach axis (tactile_planner.pocket)
         entry = np.full((m, 3), np.nan)
@@ -703,6 +703,26 @@ class TouchPlanner:
             **({} if slide is None or slide.index < 0 else
                dict(slide_direction_xyz=slide.direction_xyz, slide_length_m=slide.length_m)),
         )
+
+
+def _join_where_the_candidates_are(graph: FreeSpaceGraph, comp: np.ndarray, tip: np.ndarray, nearest: int,
+                                   open_nodes: np.ndarray, room_m: float) -> int:
+    """The tip joins the graph by a straight segment, at its nearest free node. When that node's component
+    holds none of the open candidates' nodes (``open_nodes``), at the nearest node of the component holding
+    the most whose straight segment keeps ``room_m`` (or the tip's own distance, if less) from the estimated
+    surface by distance (a snap; never through the estimate into a closed cavity). A tip 4 cm out in free
+    space beyond the shell, nearest to a lone node (a component of one), had every candidate "in another
+    free-space component" and the run ended (gen3d-018, docs/benchmarks.md "The last segment by distance")."""
+    if not len(open_nodes) or (comp[open_nodes] == comp[nearest]).any():
+        return nearest
+    count = np.bincount(comp[open_nodes])
+    need = min(room_m, float(graph.surface_distance_at(tip[None])[0])) - 1e-9
+    for c in np.argsort(-count, kind="stable")[: int((count > 0).sum())]:
+        members = np.flatnonzero(comp == c)
+        node = int(members[np.argmin(np.sum((graph.xyz[members] - tip) ** 2, axis=1))])
+        if graph.segments_free(tip[None], graph.xyz[node][None], clearance_m=need, euclidean=True)[0]:
+            return node
+    return nearest
 
 
 def _combine(why: dict, soft: str, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
