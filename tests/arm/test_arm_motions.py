@@ -254,3 +254,46 @@ def test_a_turn_that_would_put_the_wrist_on_the_table_is_refused(motions, full):
     assert thin.reorient(q_low, level).positions_rad.shape[0] > 1
     with pytest.raises(ValueError, match="wrist_bands_m"):
         ArmMotions(CommanderConfig(wrist_bands_m=(0.0, 0.1)))
+
+
+def test_what_the_planner_sends_near_the_floor_the_commander_approaches(motions):
+    """The planner's "touched below the lowest tip height" rule against the commander's own approach depth:
+    every candidate near the table that the planner lets through gets an approach of at least the shortest
+    useful length (no OutsideWorkspace), and those it refuses would have been refused. Before, a target whose
+    shortest approach ended 0.15 mm short of the commander's inset was sent, refused as unreachable, and
+    excluded with its neighbours: a flat object's run then revisited one target to the end."""
+    from tactile_common.fields import KIND_CANDIDATE, KIND_LATTICE, VARIANCE_MAP_DTYPE
+    from tactile_common.touch_geometry import TouchGeometry
+    from tactile_planner.planner import TouchPlanner
+
+    rng = np.random.default_rng(3)
+    k = 400
+    normal = rng.normal(size=(k, 3))
+    normal[:, 2] = np.abs(normal[:, 2]) + 0.05
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    target = np.column_stack([rng.uniform(0.45, 0.55, k), rng.uniform(-0.05, 0.05, k), rng.uniform(0.0, 0.03, k)])
+    ax = (np.linspace(0.35, 0.65, 16), np.linspace(-0.15, 0.15, 16), np.linspace(0.0, 0.22, 12))
+    grid = np.stack([g.ravel() for g in np.meshgrid(*ax, indexing="ij")], axis=1)
+    rows = np.zeros(len(grid) + k, VARIANCE_MAP_DTYPE)
+    rows["x"], rows["y"], rows["z"] = np.vstack([grid, target]).T
+    rows["mean"], rows["variance"] = 0.03, 1e-6  # free everywhere (within the planner's shell)
+    rows["kind"] = np.r_[np.full(len(grid), KIND_LATTICE), np.full(k, KIND_CANDIDATE)]
+    rows["normal_x"][len(grid):], rows["normal_y"][len(grid):], rows["normal_z"][len(grid):] = normal.T
+    planner = TouchPlanner.from_params({"mode": "3d", "min_tip_z_m": float(motions.box.lower_xyz[2]),
+                                        "search_quantile": 0.0, "clearance": "mean"}, seed=0)
+    planner.plan(rows, np.array([0.5, 0.0, 0.15]))
+    refused = planner.last_why["touched below the lowest tip height"]
+    assert 50 < refused.sum() < k - 50  # both kinds, near the line
+    geo = TouchGeometry()
+    pretouch = geo.pretouch_xyz(target, normal)
+
+    def commander_takes(i: int) -> bool:
+        try:
+            motions.approach_depth_m(pretouch[i], -normal[i], geo.approach_length_m, geo.min_approach_m)
+            return True
+        except OutsideWorkspace:
+            return False
+
+    takes = np.array([commander_takes(i) for i in range(k)])
+    assert takes[~refused].all()  # sent: approached
+    assert not takes[refused].any()  # refused: the commander would have too

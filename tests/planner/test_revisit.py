@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M
 from tactile_planner.planner import TouchPlanner
 from tactile_planner.synthetic import sphere_map
 
@@ -95,9 +96,10 @@ def test_a_fresh_planner_told_the_history_decides_as_the_one_that_lived_through_
 
 
 def test_3d_candidates_the_tip_would_touch_below_the_lowest_tip_height_are_skipped():
-    """The shortest approach worth making (standoff + half the depth) from the pre-touch point
-    c + (standoff + r)·n ends at c + (r − depth/2)·n; below ``min_tip_z_m`` (the commander's box floor)
-    the commander refuses the touch: not chosen."""
+    """The shortest approach worth making (standoff + half the depth, and the commander's inset
+    ``APPROACH_BOX_INSET_M``) from the pre-touch point c + (standoff + r)·n ends at
+    c + (r − depth/2 − inset)·n; below ``min_tip_z_m`` (the commander's box floor) the commander refuses
+    the touch: not chosen."""
     center = (0.5, 0.0, 0.10)
     m = sphere_map(40, 3, center=center, n_candidates=1, seed=2)
     cand = _sphere_candidates(center, 0.05, 300)
@@ -105,13 +107,28 @@ def test_3d_candidates_the_tip_would_touch_below_the_lowest_tip_height_are_skipp
     rim = np.arange(0, len(cand), 6)[:40]  # candidates of every orientation moved near the table,
     cand["z"][rim] = 0.018  # the most uncertain of all: those facing up (n_z > 0.6) cannot be probed
     cand["variance"][rim] = 1.0
-    low = cand["z"] + (r - depth / 2) * cand["normal_z"] < floor
+    low = cand["z"] + (r - depth / 2 - APPROACH_BOX_INSET_M) * cand["normal_z"] < floor
     assert 5 < low[rim].sum() < 35
     m = np.concatenate([m[m["kind"] == 0], cand])
     planner = TouchPlanner.from_params({"mode": "3d", "strategy": "uncertainty", "min_normal_z": -1.0,
                                         "tip_radius_m": r, "standoff_m": standoff, "max_depth_m": depth,
                                         "min_tip_z_m": floor}, seed=0)
     res = planner.plan(m, np.array([0.33, 0.0, 0.15]))
-    assert res.ok and res.target_xyz[2] + (r - depth / 2) * res.normal_xyz[2] >= floor
+    assert res.ok and res.target_xyz[2] + (r - depth / 2 - APPROACH_BOX_INSET_M) * res.normal_xyz[2] >= floor
     assert res.target_xyz[2] == pytest.approx(0.018)  # a rim candidate the tip can probe was chosen
     assert np.array_equal(planner.last_why["touched below the lowest tip height"], low)
+
+
+def test_a_target_is_revisited_once_not_again_and_again():
+    """When only earlier targets are left one is revisited (the run goes on), but not a third time: a flat
+    object's run had revisited one target 40 times, its path meeting the object at the same point."""
+    m = sphere_map(64, 2, seed=1)
+    cands = m[m["kind"] == 1]
+    one = np.concatenate([m[m["kind"] == 0], cands[:1]])
+    planner = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "search_quantile": 0.0}, seed=0)
+    tip = np.array([0.33, 0.0, 0.06])
+    first, second, third = (planner.plan(one, tip) for _ in range(3))
+    assert first.ok and "revisiting" not in first.message
+    assert second.ok and "revisiting" in second.message
+    assert np.allclose(second.target_xyz, first.target_xyz)
+    assert not third.ok and "targeted twice already" in third.message, third.message

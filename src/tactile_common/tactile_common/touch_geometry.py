@@ -35,6 +35,12 @@ from typing import Any, Mapping, Optional
 import numpy as np
 
 
+#: A guarded approach that the safety box shortens ends this far inside the box (m): IK waypoints deviate
+#: from the line by up to the IK's tolerance (the commander, ``ArmMotions.approach_depth_m``). The planner
+#: keeps its targets' shortest approaches inside by the same amount, or the commander refuses them.
+APPROACH_BOX_INSET_M = 5e-4
+
+
 def _from(cls, params: Mapping[str, Any]):
     return cls(**{f.name: float(params[f.name]) for f in fields(cls) if f.name in params})
 

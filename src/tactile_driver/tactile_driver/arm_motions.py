@@ -35,6 +35,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M  # a shortened approach ends this far inside
 from tactile_common.wrist import bands_from_flat, wrist_lowest_z_m
 from tactile_driver.ik import IKSettings, tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
@@ -43,9 +44,6 @@ from tactile_driver.trajectory import (MAX_AXIS_STEP_RAD, MotionLimits, TimedTra
                                        plan_tip_path, time_parameterize, unit_axes)
 
 
-#: A shortened approach ends this far inside the box (m): IK waypoints deviate from the line by
-#: up to ``ik_tol_m`` (the box check of waypoints allows that much, the target's is exact).
-APPROACH_BOX_INSET_M = 5e-4
 #: A start finger counts as tilted (a path without axes then holds its axis) only beyond
 #: ``max_tilt_rad`` + this (rad): a vertical-mode finger a hair past ``max_tilt_rad`` (a stop between two
 #: waypoints of the spline, tracking error) must still be planned vertical, exactly as before.

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse.csgraph as csg
 
 from tactile_common.finger_axis import EZ
-from tactile_common.touch_geometry import MotionModel, TouchGeometry, rod_points
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M, MotionModel, TouchGeometry, rod_points
 from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
@@ -527,12 +527,17 @@ class TouchPlanner:
             why["near a target reported unreachable"] = np.any(d <= float(p["exclude_radius_m"]), axis=1)
         if self.visited and float(p["revisit_radius_m"]) > 0:
             d = np.linalg.norm(target[:, None, :dim] - np.asarray(self.visited)[None, :, :dim], axis=2)
-            why["already targeted"] = np.any(d <= float(p["revisit_radius_m"]), axis=1)
+            near = np.count_nonzero(d <= float(p["revisit_radius_m"]), axis=1)
+            why["already targeted"] = near >= 1
+            # revisited once already: a third touch there is not made (a flat object's run revisited one
+            # target whose path met the object at the same point, a duplicate contact, for 40 touches)
+            why["targeted twice already"] = near >= 2
         if dim == 3:
             why["facing down"] = normal[:, 2] < float(p["min_normal_z"])
-            # the shortest approach worth making (TouchGeometry.min_approach_m) would end below the
-            # lowest tip height, the floor of the arm's safety box: the commander refuses the touch
-            probe_z = pretouch[:, 2] - geometry.min_approach_m * normal[:, 2]
+            # the shortest approach worth making (TouchGeometry.min_approach_m), and the commander's inset,
+            # would end below the lowest tip height, the floor of the arm's safety box: the commander
+            # refuses the touch (without the inset, targets 0.15 mm short were sent and refused)
+            probe_z = pretouch[:, 2] - (geometry.min_approach_m + APPROACH_BOX_INSET_M) * normal[:, 2]
             why["touched below the lowest tip height"] = probe_z < float(p["min_tip_z_m"])
         # "already targeted" is a preference, not a wall: when only earlier targets are left
         # they are revisited rather than the run stopped with unconfirmed surface in reach
