@@ -144,6 +144,36 @@ def test_ring_candidates_lie_on_the_ring_face_outwards_and_stay_on_the_lattice(d
     assert np.abs(s_at).max() < 2e-3  # the planning field's zero level set is the ring (lattice interpolation)
 
 
+def test_3d_table_rings_sweep_the_annulus_at_the_lowest_probe_height():
+    """``table_z_m``: the 3D ring is the horizontal circle at that height, approached level towards the
+    centre. Oracle: the probes' swept volumes (the tip's ball from the pre-touch point to the approach's
+    end, the config's geometry) cover every point of the annulus 2 cm wide inside the ring at that height:
+    an object on the table whose footprint reaches into it is met, however flat."""
+    ax = (np.linspace(0.35, 0.65, 24), np.linspace(-0.15, 0.15, 24), np.linspace(0.0, 0.22, 18))
+    grids = np.meshgrid(*ax, indexing="ij")
+    lat = MapLattice(axes=ax, mean_m=0.05 + 0 * grids[0], variance_m2=1e-3 + 0 * grids[0], plane_z_m=0.0)
+    radius, spacing, z = 0.075, 0.02, 0.017
+    search_lat, c = ring_search_map(lat, radius, spacing, min_z_m=0.015, inset_m=0.02, table_z_m=z)
+    assert len(c) == int(np.ceil(2 * np.pi * radius / spacing))  # a hemisphere would need ~88
+    np.testing.assert_allclose(c.xyz[:, 2], z)
+    np.testing.assert_allclose(c.normal[:, 2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.hypot(c.xyz[:, 0] - 0.5, c.xyz[:, 1]), radius, atol=1e-12)
+    np.testing.assert_allclose(c.normal[:, :2], (c.xyz[:, :2] - [0.5, 0.0]) / radius, atol=1e-12)
+    # the planning field is the vertical cylinder through the circle (paths keep off it at any height)
+    X, Y, _ = grids
+    np.testing.assert_allclose(search_lat.mean_m, np.hypot(X - 0.5, Y) - radius, atol=1e-12)
+    p = load_params(str(CONFIG))
+    r, pre_m, depth = p["tip_radius_m"], p["tip_radius_m"] + p["standoff_m"], p["max_depth_m"]
+    a = c.xyz + pre_m * c.normal  # pre-touch tip centres
+    b = c.xyz + (r - depth) * c.normal  # the approach's end
+    rho, phi = np.meshgrid(np.linspace(radius - 0.02, radius, 21), np.linspace(0, 2 * np.pi, 721))
+    q = np.column_stack([0.5 + rho.ravel() * np.cos(phi.ravel()), rho.ravel() * np.sin(phi.ravel()),
+                         np.full(rho.size, z)])
+    t = np.clip(np.einsum("qkd,kd->qk", q[:, None] - a[None], b - a) / np.sum((b - a) ** 2, axis=1), 0, 1)
+    dist = np.linalg.norm(q[:, None] - (a[None] + t[..., None] * (b - a)[None]), axis=2).min(axis=1)
+    assert dist.max() <= r + 1e-9
+
+
 def test_a_lost_object_is_searched_where_most_probable_then_ring_by_ring_each_spot_once():
     """No estimated surface: the planner probes where the object is most probable; once every spot
     there was probed (the same map every time: the misses taught nothing), it covers the workspace

@@ -64,9 +64,13 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                         "(tactile_planner.search); 0 = stop with no_candidates / all_unreachable",
                         {"ge": 0.0, "lt": 1.0}),
     "search_ring_spacing_m": (0.02, "when the probability search has nothing left to probe: coverage rings around "
-                              "the workspace centre (2D circles, 3D hemispheres on the table), one approach-length "
+                              "the workspace centre (2D circles; 3D: search_rings_3d), one approach-length "
                               "apart, candidates this far apart on each, nearest ring first "
                               "(tactile_planner.search; 0 = off)", {"ge": 0.0}),
+    "search_rings_3d": ("table", "3D coverage rings: 'table' (horizontal circles at the lowest probe height, "
+                        "approached level towards the centre: every object on the table crosses that height) or "
+                        "'hemisphere' (hemispheres on the table, approached towards its centre)",
+                        {"choices": ("table", "hemisphere")}),
     "search_rings_first": (False, "a lost object: the coverage rings before the probability search (the 3D "
                            "default, with equality free-space observations: the probability search then follows "
                            "the kernel's extrapolation; docs/planner.md)"),
@@ -437,6 +441,7 @@ class TouchPlanner:
         geometry = TouchGeometry.from_params(p)
 
         rings_first = bool(p["search_rings_first"]) if rings_first is None else rings_first
+        table = str(p["search_rings_3d"]) == "table"
 
         def probable() -> PlanResult | None:
             found = search_map(lattice, q, min_z)
@@ -447,7 +452,8 @@ class TouchPlanner:
         def rings() -> PlanResult | None:
             for radius in ring_radii_m(lattice, geometry.approach_length_m) if lost and spacing > 0 else ():
                 # the pre-touch point must be on the lattice too
-                ring = ring_search_map(lattice, radius, spacing, min_z, geometry.pretouch_offset_m)
+                ring = ring_search_map(lattice, radius, spacing, min_z, geometry.pretouch_offset_m,
+                                       table_z_m=min_z + FOOT_PROBE_LIFT_M if table else None)
                 if ring is not None:
                     res = self._plan_on(*ring, tip, excluded_targets, f"search ({why}; coverage ring "
                                         f"r = {radius:.3f} m around the workspace centre): ")

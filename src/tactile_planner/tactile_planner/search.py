@@ -149,13 +149,13 @@ def ring_centre(lattice: MapLattice) -> np.ndarray:
     return c
 
 
-def _ring_points(dim: int, radius_m: float, spacing_m: float) -> np.ndarray:
-    """Unit directions about ``spacing_m`` apart on a circle (2D) or an upper hemisphere (3D,
-    Fibonacci lattice), (K, dim)."""
-    if dim == 2:
+def _ring_points(dim: int, radius_m: float, spacing_m: float, flat: bool = False) -> np.ndarray:
+    """Unit directions about ``spacing_m`` apart on a circle (2D; 3D with ``flat``: horizontal, z = 0) or
+    an upper hemisphere (3D, Fibonacci lattice), (K, dim)."""
+    if dim == 2 or flat:
         k = max(3, int(np.ceil(2 * np.pi * radius_m / spacing_m)))
         a = 2 * np.pi * np.arange(k) / k
-        return np.column_stack([np.cos(a), np.sin(a)])
+        return np.column_stack([np.cos(a), np.sin(a)] + [np.zeros(k)] * (dim - 2))
     k = max(4, int(np.ceil(2 * np.pi * radius_m ** 2 / spacing_m ** 2)))  # hemisphere area / spacing²
     i = np.arange(k) + 0.5
     z = i / k  # uniform in z on (0, 1]: uniform in area on the hemisphere
@@ -188,7 +188,7 @@ def floating_base(lattice: MapLattice, min_z_m: float, gap_m: float) -> Optional
 
 def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_z_m: float = -np.inf,
                     inset_m: float = 0.0, centre_xyz: Optional[np.ndarray] = None,
-                    max_z_m: float = np.inf) -> Optional[tuple[MapLattice, Candidates]]:
+                    max_z_m: float = np.inf, table_z_m: Optional[float] = None) -> Optional[tuple[MapLattice, Candidates]]:
     """The coverage search of one ring: the lattice with s = |x − c| − r in place of μ (paths keep
     off the ring) and candidates ``spacing_m`` apart on it, normals pointing away from the centre c
     (:func:`ring_centre`), so each probe sweeps the ring's width towards the centre.
@@ -200,18 +200,28 @@ def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_
     above ``min_z_m`` and below ``max_z_m``); their mean and variance are the estimate's (μ, σ²), so
     the strategies prefer the unexplored parts of the ring (high σ) near the tip. ``centre_xyz``:
     another centre than the workspace's (a floating estimate's footprint, :func:`floating_base`).
+
+    3D with ``table_z_m``: the ring is the horizontal circle at that height (the lowest probe height),
+    approached level towards the centre, and s = the distance to the vertical cylinder through it. An
+    object stands on the table, so its footprint crosses the height every object reaches; a circle
+    needs 2πr/spacing probes where the hemisphere needs 2πr²/spacing² (24 against 88 at r = 7.5 cm),
+    and it finds a flat object that the hemisphere's probes pass over.
+
     None when no point is left."""
     c = ring_centre(lattice) if centre_xyz is None else np.asarray(centre_xyz, dtype=float).reshape(3)
-    dirs = _ring_points(lattice.dim, radius_m, spacing_m)
+    flat = lattice.dim == 3 and table_z_m is not None
+    dirs = _ring_points(lattice.dim, radius_m, spacing_m, flat)
     pts = c[: lattice.dim] + radius_m * dirs
+    if flat:
+        pts[:, 2] = table_z_m
     lo = np.array([a[0] for a in lattice.axes]) + inset_m
     hi = np.array([a[-1] for a in lattice.axes]) - inset_m
-    keep = np.all((pts >= lo) & (pts <= hi), axis=1)
+    keep = np.all(((pts >= lo) & (pts <= hi))[:, :2] if flat else (pts >= lo) & (pts <= hi), axis=1)
     if lattice.dim == 3:
         keep &= (pts[:, 2] >= min_z_m) & (pts[:, 2] < max_z_m)
     pts, dirs = pts[keep], dirs[keep]
     if not len(pts):
         return None
     grids = np.meshgrid(*lattice.axes, indexing="ij")
-    s = np.sqrt(sum((g - c[k]) ** 2 for k, g in enumerate(grids))) - radius_m
+    s = np.sqrt(sum((g - c[k]) ** 2 for k, g in enumerate(grids[:2] if flat else grids))) - radius_m
     return _searching(lattice, s, pts, dirs)
