@@ -208,9 +208,12 @@ class FreeSpaceGraph:
         n = int(np.ceil(np.max(np.linalg.norm(b - a, axis=1), initial=0.0) / step)) + 1
         t = np.linspace(0.0, 1.0, max(n, 2))
         pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
-        field_at = self.surface_distance_at if euclidean else self.clearance_m
-        mu = field_at(pts.reshape(-1, 3)).reshape(len(a), -1)
         need = np.broadcast_to(np.asarray(self.margin_m if clearance_m is None else clearance_m, float), (len(a),))
+        if euclidean:  # distances beyond the largest need do not matter (a bounded query is faster)
+            mu = self.surface_distance_at(pts.reshape(-1, 3), max_m=float(np.max(need, initial=0.0)) + 1e-3)
+        else:
+            mu = self.clearance_m(pts.reshape(-1, 3))
+        mu = mu.reshape(len(a), -1)
         return np.all(mu >= need[:, None] - 1e-9, axis=1)
 
     def node_clearance_m(self, node: np.ndarray) -> np.ndarray:
