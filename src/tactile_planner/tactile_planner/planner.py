@@ -167,7 +167,7 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
 
 #: The reason a candidate is excluded when its approach would put the vertical rod into the estimate.
 SHAFT_REASON = "the finger's shaft would enter the estimate"
-FOOT_PROBE_LIFT_M = 0.002  # a foot probe's height above the lowest tip height (clear of the graph's floor)
+FOOT_PROBE_LIFT_M = 0.002  # a foot probe's and a table ring's height above the lowest tip height (off the graph's floor)
 FOOT_PROBE_SLACK_M = 0.001  # its approach ends this much farther out than the rod's radius and gap need
 
 
