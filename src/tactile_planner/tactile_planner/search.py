@@ -216,7 +216,8 @@ def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_
         pts[:, 2] = table_z_m
     lo = np.array([a[0] for a in lattice.axes]) + inset_m
     hi = np.array([a[-1] for a in lattice.axes]) - inset_m
-    keep = np.all(((pts >= lo) & (pts <= hi))[:, :2] if flat else (pts >= lo) & (pts <= hi), axis=1)
+    on_lattice = (pts >= lo) & (pts <= hi)
+    keep = np.all(on_lattice[:, :2] if flat else on_lattice, axis=1)  # a level probe's pre-touch: x, y only
     if lattice.dim == 3:
         keep &= (pts[:, 2] >= min_z_m) & (pts[:, 2] < max_z_m)
     pts, dirs = pts[keep], dirs[keep]
