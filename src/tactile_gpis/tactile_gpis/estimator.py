@@ -42,6 +42,7 @@ from .kernels import KERNEL_TYPES, make_kernel
 from .local import LocalGPIS
 from .levelset import LevelSet, farthest_point_subsample, lattice_points, zero_level_set
 from .prior import sphere_mean, zero_mean
+from .solid import floating_untouched
 
 METHODS = ("exact", "local", "auto")
 
@@ -103,6 +104,12 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                             "0 = off) (m)", {"ge": 0.0}),
     "thinning.normal_angle_deg": (20.0, "thinning: normals this close (deg) count as consistent",
                                   {"ge": 0.0, "le": 180.0}),
+    "solid.drop_floating": (True, "3D: the estimated solid (the level set, the candidates, the inside tests the "
+                            "metrics read) leaves out each component of {mean < 0} that no contact touches and whose "
+                            "lowest node floats more than solid.floating_gap_m above the table: no observation holds "
+                            "it up (tactile_gpis.solid; 2D: no effect)"),
+    "solid.floating_gap_m": (0.02, "3D: a component of the estimate whose lowest node is more than this above the "
+                             "table floats (m)", {"ge": 0.0}),
     "jitter": (1e-10, "added to the covariance diagonal of every new observation", {"ge": 0.0}),
     "method": ("exact", "'exact' (one GP, the whole lattice updated per contact), 'local' (local GP experts on "
                "an octree over an anchor GP, evaluated on a narrow band: docs/gpis.md), 'auto' (exact until "
@@ -200,6 +207,8 @@ class ShapeEstimator:
         self.table_margin_m = float(p["candidates.table_margin_m"])
         self.snap_m = _nonneg(p, "candidates.snap_m")
         self.duplicate_distance_m = _nonneg(p, "duplicate_distance_m")
+        self.drop_floating = _flag(p, "solid.drop_floating") and self.dim == 3
+        self.floating_gap_m = _nonneg(p, "solid.floating_gap_m")
         self.thin_var_ratio = _nonneg(p, "thinning.var_ratio")
         self.thin_distance_m = _nonneg(p, "thinning.distance_m")
         angle = float(p["thinning.normal_angle_deg"])
@@ -306,6 +315,7 @@ class ShapeEstimator:
         self._contact_points = np.zeros((0, self.dim))  # added contacts (thinning by distance)
         self._contact_normals = np.zeros((0, self.dim))  # their unit normals (NaN: none)
         self._cache: Optional[tuple[int, np.ndarray, LevelSet]] = None
+        self._floating: Optional[tuple[int, Optional[np.ndarray]]] = None  # (version, _floating_nodes())
         self._refined: Optional[tuple[int, int, LevelSet]] = None  # (version, steps, refined_level_set())
         self._snap_prev: Optional[tuple[np.ndarray, np.ndarray]] = None  # last map's (vertex keys, positions)
 
@@ -613,11 +623,27 @@ class ShapeEstimator:
         return self._above_table(P, self._interpolated_mean(P) < 0)
 
     def _interpolated_mean(self, P: np.ndarray) -> np.ndarray:
-        """The lattice mean linearly interpolated at (N, dim) points (outside the lattice: +inf)."""
+        """The lattice mean linearly interpolated at (N, dim) points (outside the lattice: +inf), with the
+        nodes of floating untouched components (:meth:`_floating_nodes`) read as outside (|μ|)."""
         from scipy.interpolate import RegularGridInterpolator
 
-        return RegularGridInterpolator(self.lattice_axes, self.lattice_mean(), bounds_error=False,
-                                       fill_value=np.inf)(P)
+        mean, floating = self.lattice_mean(), self._floating_nodes()
+        if floating is not None:
+            mean = np.where(floating, np.abs(mean), mean)
+        return RegularGridInterpolator(self.lattice_axes, mean, bounds_error=False, fill_value=np.inf)(P)
+
+    def _floating_nodes(self) -> Optional[np.ndarray]:
+        """Bool (lattice shape) over the nodes of the components of {μ < 0} the estimated solid leaves
+        out (``solid.drop_floating``, :func:`~tactile_gpis.solid.floating_untouched`); None when none.
+        Before the first contact nothing is left out: the estimate is then the prior, shaped by misses
+        (the planner searches with it), and no component holds the object's data yet."""
+        if not self.drop_floating or not len(self._contact_points):
+            return None
+        if self._floating is None or self._floating[0] != self._version:
+            mask = floating_untouched(self.lattice_mean(), self.lattice_axes, self._contact_points,
+                                      self.floating_gap_m)
+            self._floating = (self._version, mask if mask.any() else None)
+        return self._floating[1]
 
     def _above_table(self, P: np.ndarray, inside: np.ndarray) -> np.ndarray:
         """``inside`` and, in 3D, z >= 0 (nothing below the table)."""
@@ -644,7 +670,14 @@ class ShapeEstimator:
         P = self._xy(points)
         mu = self._interpolated_mean(P)
         band = band_cells * max(float(a[1] - a[0]) for a in self.lattice_axes)
-        near = np.flatnonzero(np.abs(mu) < band)
+        near = np.abs(mu) < band
+        floating = self._floating_nodes()
+        if floating is not None:  # not in a cell of a left-out component: the GP mean there is < 0
+            from scipy.interpolate import RegularGridInterpolator
+
+            near &= RegularGridInterpolator(self.lattice_axes, floating.astype(float), bounds_error=False,
+                                            fill_value=0.0)(P) <= 0
+        near = np.flatnonzero(near)
         mu[near] = self._predict_in_chunks(P[near])
         if self.dim == 3:
             mu[P[:, 2] < 0] = np.inf
@@ -759,7 +792,7 @@ class ShapeEstimator:
             return self._cache
         mean = self.lattice_mean()
         var = self.lattice_variance().ravel()
-        ls = zero_level_set(mean, self.lattice_axes)
+        ls = _without_nodes(zero_level_set(mean, self.lattice_axes), self._floating_nodes())
         cand, keys = ls.vertices, ls.keys
         if self.dim == 3:
             above = cand[:, 2] > self.table_margin_m
@@ -816,6 +849,21 @@ class ShapeEstimator:
             out[near] = pv[j[near]]
         self._snap_prev = (keys, out)
         return out
+
+
+def _without_nodes(ls: LevelSet, nodes: Optional[np.ndarray]) -> LevelSet:
+    """The level set without the vertices on a lattice edge with an end in ``nodes`` (bool, lattice
+    shape; None: all kept) and the elements that use them; the vertices renumbered."""
+    if nodes is None or ls.keys is None or not len(ls.vertices):
+        return ls
+    flat = nodes.ravel()
+    m = flat.size
+    keep = ~(flat[ls.keys // m] | flat[ls.keys % m])
+    if keep.all():
+        return ls
+    new_index = np.cumsum(keep) - 1
+    elements = ls.elements[keep[ls.elements].all(axis=1)]
+    return LevelSet(ls.vertices[keep], new_index[elements], ls.keys[keep])
 
 
 def _unit(g: np.ndarray) -> np.ndarray:
