@@ -229,38 +229,41 @@ CLEARANCES = ("distance", "mean")
 _THREADED_QUERY_MIN = 32768  # lattice nodes from which the surface-distance query runs on every core
 
 
-def zero_crossings_m(lattice: MapLattice) -> np.ndarray:
-    """(K, dim) points where the lattice mean μ changes sign along an axis edge (linear interpolation
-    between the two nodes): samples of the estimate's zero level set, world frame."""
-    mu = lattice.mean_m
+def edge_zero_crossings(values: np.ndarray, axes) -> np.ndarray:
+    """(K, dim) points where a lattice field changes sign along an axis edge (linear interpolation
+    between the two nodes), world frame."""
     pts = []
-    for k, ax in enumerate(lattice.axes):
-        a = [slice(None)] * lattice.dim
-        b = [slice(None)] * lattice.dim
+    for k, ax in enumerate(axes):
+        a = [slice(None)] * values.ndim
+        b = [slice(None)] * values.ndim
         a[k], b[k] = slice(None, -1), slice(1, None)
-        fa, fb = mu[tuple(a)], mu[tuple(b)]
-        cross = (fa < 0) != (fb < 0)
-        if not cross.any():
+        fa, fb = values[tuple(a)], values[tuple(b)]
+        idx = np.nonzero((fa < 0) != (fb < 0))
+        if not len(idx[0]):
             continue
-        idx = np.nonzero(cross)
         t = fa[idx] / (fa[idx] - fb[idx])
-        coords = [lattice.axes[j][idx[j]] for j in range(lattice.dim)]
+        coords = [axes[j][idx[j]] for j in range(values.ndim)]
         coords[k] = coords[k] + t * (ax[1] - ax[0])
         pts.append(np.stack(coords, axis=1))
-    return np.concatenate(pts) if pts else np.zeros((0, lattice.dim))
+    return np.concatenate(pts) if pts else np.zeros((0, values.ndim))
 
 
-def surface_distance_m(lattice: MapLattice, max_m: float = np.inf) -> np.ndarray:
+def zero_crossings_m(lattice: MapLattice) -> np.ndarray:
+    """(K, dim) samples of the estimate's zero level set: the edge crossings of the lattice mean μ."""
+    return edge_zero_crossings(lattice.mean_m, lattice.axes)
+
+
+def surface_distance_m(lattice: MapLattice, max_m: float = np.inf, crossings: cKDTree | None = None) -> np.ndarray:
     """Signed distance (lattice shape, m; < 0 inside) from each lattice node to the zero level
     set of the lattice mean: the nearest zero crossing of μ on an axis edge (linear
     interpolation), sign of μ. Nodes farther than ``max_m`` (or all, when μ has no zero
-    crossing) get ±``max_m``: finite, so that the field interpolates."""
+    crossing) get ±``max_m``: finite, so that the field interpolates. ``crossings``: the k-d tree
+    of :func:`zero_crossings_m` when the caller holds it (None: built here)."""
     mu = lattice.mean_m
-    crossings = zero_crossings_m(lattice)
+    tree = crossings if crossings is not None else cKDTree(zero_crossings_m(lattice))
     sign = np.where(mu < 0, -1.0, 1.0)
-    if not len(crossings):
+    if tree.n == 0:
         return sign * max_m
-    tree = cKDTree(crossings)
     grid = lattice.grid_xyz()[:, : lattice.dim]
     # Threads (each node's answer is the same on any number of cores) pay on the 3D lattice (48³:
     # 83 -> 47 ms on 2 cores), not on a 2D one (128²: the same within noise).
@@ -414,10 +417,12 @@ def build_free_graph(
             above it up to ``shaft_length_m`` keeps clearance ``shaft_clearance_m`` too (module docstring).
     """
     mu = lattice.mean_m
+    crossings = None
     if clearance == "distance":
         # beyond margin + shell a node's exact distance does not matter (free, or outside the band)
         reach = margin_m + shell_m if shell_m > 0 else margin_m
-        cl = surface_distance_m(lattice, max_m=reach + 2.0 * float(np.max(lattice.spacing_m)))
+        crossings = cKDTree(zero_crossings_m(lattice))  # the graph's surface_distance_at reads it too
+        cl = surface_distance_m(lattice, max_m=reach + 2.0 * float(np.max(lattice.spacing_m)), crossings=crossings)
     elif clearance == "mean":
         cl = mu
     else:
@@ -450,10 +455,12 @@ def build_free_graph(
     xyz = lattice.grid_xyz()[grid_of_node]
     src, dst, ln = edges
     length = _symmetric(node_of_grid[src], node_of_grid[dst], ln, len(grid_of_node))
-    return FreeSpaceGraph(
+    graph = FreeSpaceGraph(
         lattice=lattice, free=free, node_of_grid=node_of_grid, grid_of_node=grid_of_node,
         xyz=xyz, length_m=length, margin_m=float(margin_m),
         min_z_m=float(min_z_m) if lattice.dim == 3 else -np.inf,
         clearance_field_m=None if clearance == "mean" and rod_field is None else cl, finger_m=finger_m,
         shaft_field_m=rod_field, shaft_length_m=float(shaft_length_m) if rod_field is not None else 0.0,
     )
+    graph._crossings = crossings
+    return graph

@@ -28,6 +28,7 @@ from typing import Optional
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
+from .graph import edge_zero_crossings
 from .maps import Candidates, MapLattice
 
 
@@ -53,24 +54,6 @@ def search_field(lattice: MapLattice, quantile: float, min_z_m: float = -np.inf)
     return mu - beta * sigma
 
 
-def _edge_crossings(values: np.ndarray, axes: tuple) -> np.ndarray:
-    """Zero crossings of a lattice field on its axis edges, (K, dim), by linear interpolation."""
-    pts = []
-    for k, ax in enumerate(axes):
-        a = [slice(None)] * values.ndim
-        b = [slice(None)] * values.ndim
-        a[k], b[k] = slice(None, -1), slice(1, None)
-        fa, fb = values[tuple(a)], values[tuple(b)]
-        idx = np.nonzero((fa < 0) != (fb < 0))
-        if not len(idx[0]):
-            continue
-        t = fa[idx] / (fa[idx] - fb[idx])
-        coords = [axes[j][idx[j]] for j in range(values.ndim)]
-        coords[k] = coords[k] + t * (ax[1] - ax[0])
-        pts.append(np.stack(coords, axis=1))
-    return np.concatenate(pts) if pts else np.zeros((0, values.ndim))
-
-
 def _farthest_points(points: np.ndarray, k: int) -> np.ndarray:
     """Indices of ``k`` points spread over ``points`` (greedy farthest-point order, from the first)."""
     if len(points) <= k:
@@ -91,7 +74,7 @@ def search_map(lattice: MapLattice, quantile: float, min_z_m: float = -np.inf,
     strategies score them by the estimate's own uncertainty). None when s has no zero crossing
     (or, in 3D, none at or above ``min_z_m``)."""
     s = search_field(lattice, quantile, min_z_m)
-    pts = _edge_crossings(s, lattice.axes)
+    pts = edge_zero_crossings(s, lattice.axes)
     if lattice.dim == 3:
         pts = pts[pts[:, 2] >= min_z_m]
     if not len(pts):
