@@ -52,6 +52,29 @@ def test_a_touched_or_grounded_component_stays():
     assert not floating_untouched(joined, AXES, _on_surface(ON_TABLE, [-1, 0, 0])[None], 0.02).any()
 
 
+def test_many_contacts_give_the_brute_force_answer():
+    """Hundreds of contacts (several lookup chunks), the one that touches a floating ball last: the
+    answer is the definition's, each component's nodes against each contact by distance."""
+    other = (np.array([0.40, 0.08, 0.16]), 0.025)  # a second floating ball
+    mean = _ball_field(ON_TABLE, FLOATING, other)
+    rng = np.random.default_rng(3)
+    on_table = np.array([_on_surface(ON_TABLE, d) for d in rng.normal(size=(100, 3))])
+    # within a cell diagonal (1.3 cm) of the second ball's bounding box (nodes up to 1.9 cm from its
+    # centre per axis), more than that from its surface (2.3 cm): looked up, touching nothing
+    corners = other[0] + 0.028 * rng.choice([-1.0, 1.0], size=(200, 3)) + rng.uniform(-1e-3, 1e-3, (200, 3))
+    reach = float(np.linalg.norm([a[1] - a[0] for a in AXES]))
+    near_miss = np.vstack([on_table, corners])
+    for contacts in (near_miss, np.vstack([near_miss, _on_surface(other, [1, 1, -1])])):
+        got = floating_untouched(mean, AXES, contacts, 0.02)
+        want = np.zeros(SHAPE, bool)
+        for ball in (FLOATING, other):
+            nodes = GRID[_inside(ball).ravel()]
+            near = np.linalg.norm(nodes[:, None, :] - contacts[None], axis=2).min() <= reach
+            want |= _inside(ball) & (not near)
+        np.testing.assert_array_equal(got, want)
+    assert got.sum() == _inside(FLOATING).sum()  # the last contact kept the second ball
+
+
 def test_the_level_set_without_a_component_is_the_rest_s_own():
     both = zero_level_set(_ball_field(ON_TABLE, FLOATING), AXES)
     alone = zero_level_set(_ball_field(ON_TABLE), AXES)
