@@ -91,6 +91,30 @@ def test_no_free_node_lies_under_the_deck_and_every_other_node_keeps_its_freedom
     assert shaft.segments_free(beside[None] + [0, -0.03, 0], beside[None] + [0, 0.03, 0])[0]
 
 
+@pytest.mark.parametrize("euclidean", [False, True])
+def test_a_segment_is_free_whatever_else_is_asked_with_it(euclidean):
+    """Straight segments 1 mm to 20 cm long round the mushroom: free iff the exact distance along them
+    (densely sampled) keeps the margin, wherever that is clear by more than the lattice's error; and each
+    answer is the same asked alone or beside a long segment (each is sampled at its own step)."""
+    lat = mushroom_lattice()
+    graph = build_free_graph(lat, 0.015, shell_m=0.03, min_z_m=0.015)
+    rng = np.random.default_rng(5)
+    a = rng.uniform([0.40, -0.10, 0.02], [0.60, 0.10, 0.16], size=(300, 3))
+    d = rng.normal(size=(300, 3))
+    b = a + d / np.linalg.norm(d, axis=1, keepdims=True) * np.geomspace(0.001, 0.2, 300)[:, None]
+    t = np.linspace(0.0, 1.0, 2001)
+    exact_min = np.array([mushroom_sdf(p + t[:, None] * (q - p)).min() for p, q in zip(a, b)])
+    got = graph.segments_free(a, b, euclidean=euclidean)
+    inside = np.all([(np.minimum(a[:, k], b[:, k]) > lo) & (np.maximum(a[:, k], b[:, k]) < hi)
+                     for k, (lo, hi) in enumerate(zip([0.35, -0.15, 0.016], [0.65, 0.15, 0.22]))], axis=0)
+    clear = (np.abs(exact_min - 0.015) > 0.004) & inside  # not under the tip's lowest height, in the lattice
+    assert clear.sum() > 200 and 20 < (exact_min[clear] >= 0.015).sum() < clear.sum() - 20
+    np.testing.assert_array_equal(got[clear], exact_min[clear] >= 0.015)
+    alone = np.array([graph.segments_free(p[None], q[None], euclidean=euclidean)[0] for p, q in zip(a, b)])
+    np.testing.assert_array_equal(got, alone)
+    assert graph.segments_free(a[:0], b[:0]).shape == (0,)
+
+
 def test_approaches_that_would_put_the_rod_into_the_deck_are_excluded_and_others_are_not():
     cands = np.array([
         [0.515, 0.0, 0.05],  # the pillar's side, under the deck

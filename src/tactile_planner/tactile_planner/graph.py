@@ -199,22 +199,27 @@ class FreeSpaceGraph:
 
     def segments_free(self, a_xyz: np.ndarray, b_xyz: np.ndarray, step_m: float | None = None,
                       clearance_m: float | np.ndarray | None = None, euclidean: bool = False) -> np.ndarray:
-        """For each segment a→b ((S, 3) each), whether all samples keep c ≥ ``clearance_m`` (a scalar or
-        one per segment; default the margin); ``euclidean``: c is :meth:`surface_distance_at`, not the
-        graph's clearance field."""
+        """For each segment a→b ((S, 3) each), whether all its samples (evenly spaced, at most ``step_m``
+        apart, default a quarter of the smallest lattice spacing; both ends included) keep c ≥
+        ``clearance_m`` (a scalar or one per segment; default the margin); ``euclidean``: c is
+        :meth:`surface_distance_at`, not the graph's clearance field."""
         a = np.asarray(a_xyz, float).reshape(-1, 3)
         b = np.asarray(b_xyz, float).reshape(-1, 3)
+        if not len(a):
+            return np.zeros(0, bool)
         step = step_m if step_m is not None else float(np.min(self.lattice.spacing_m)) / 4.0
-        n = int(np.ceil(np.max(np.linalg.norm(b - a, axis=1), initial=0.0) / step)) + 1
-        t = np.linspace(0.0, 1.0, max(n, 2))
-        pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+        # each segment its own count: one long segment no longer samples every short one as finely
+        count = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / step).astype(np.int64) + 1, 2)
+        first = np.cumsum(count) - count
+        seg = np.repeat(np.arange(len(a)), count)
+        t = (np.arange(int(count.sum())) - first[seg]) / (count[seg] - 1)
+        pts = a[seg] + t[:, None] * (b - a)[seg]
         need = np.broadcast_to(np.asarray(self.margin_m if clearance_m is None else clearance_m, float), (len(a),))
         if euclidean:  # distances beyond the largest need do not matter (a bounded query is faster)
-            mu = self.surface_distance_at(pts.reshape(-1, 3), max_m=float(np.max(need, initial=0.0)) + 1e-3)
+            mu = self.surface_distance_at(pts, max_m=float(np.max(need, initial=0.0)) + 1e-3)
         else:
-            mu = self.clearance_m(pts.reshape(-1, 3))
-        mu = mu.reshape(len(a), -1)
-        return np.all(mu >= need[:, None] - 1e-9, axis=1)
+            mu = self.clearance_m(pts)
+        return np.logical_and.reduceat(mu >= need[seg] - 1e-9, first)
 
     def node_clearance_m(self, node: np.ndarray) -> np.ndarray:
         """The clearance each node keeps: the margin, or the finger's room at a narrow node."""
