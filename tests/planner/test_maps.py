@@ -43,6 +43,17 @@ def test_nodes_out_of_order_or_missing_are_refused_with_the_reason(spoil, reason
         parse_variance_map(spoil(_lattice(axes)))
 
 
+@pytest.mark.parametrize("field", ["x", "y", "z"])
+def test_one_node_a_micrometre_off_its_place_is_refused(field):
+    axes = [np.linspace(0.3, 0.4, 6), np.linspace(-0.1, 0.0, 5), np.linspace(0.0, 0.05, 4)]
+    m = _lattice(axes)
+    m[field][37] += 1e-6
+    with pytest.raises(MapError):
+        parse_variance_map(m)
+    m[field][37] -= 1e-6 - 5e-10  # within the 1e-9 m tolerance: accepted
+    parse_variance_map(m)
+
+
 def test_an_unevenly_spaced_axis_is_refused():
     axes = [np.array([0.3, 0.31, 0.33, 0.34]), np.linspace(-0.1, 0.0, 5), np.linspace(0.0, 0.05, 4)]
     with pytest.raises(MapError, match="evenly spaced"):

@@ -90,9 +90,17 @@ def _axis(values: np.ndarray, name: str) -> np.ndarray:
 
 
 def _in_c_order(p: np.ndarray, axes) -> bool:
-    """Every node (N, 3) at its place on the lattice of ``axes`` in C order (to 1e-9 m)."""
-    mesh = np.meshgrid(*axes, indexing="ij")
-    return all(np.allclose(p[:, k], m.ravel(), rtol=0, atol=1e-9) for k, m in enumerate(mesh))
+    """Every node (N, 3) at its place on the lattice of ``axes`` in C order (to 1e-9 m): node
+    (i, j, k) holds (axes[0][i], axes[1][j], axes[2][k]), compared by broadcasting, not a meshgrid."""
+    shape = tuple(len(a) for a in axes)
+    if int(np.prod(shape)) != len(p):
+        return False
+    q = p[:, : len(axes)].reshape(*shape, len(axes))
+    for k, a in enumerate(axes):
+        along = tuple(slice(None) if j == k else None for j in range(len(axes)))
+        if np.max(np.abs(q[..., k] - np.asarray(a)[along]), initial=0.0) > 1e-9:
+            return False
+    return True
 
 
 def _c_order_axes(p: np.ndarray) -> list[np.ndarray] | None:
