@@ -98,7 +98,7 @@ def _in_c_order(p: np.ndarray, axes) -> bool:
     q = p[:, : len(axes)].reshape(*shape, len(axes))
     for k, a in enumerate(axes):
         along = tuple(slice(None) if j == k else None for j in range(len(axes)))
-        if np.max(np.abs(q[..., k] - np.asarray(a)[along]), initial=0.0) > 1e-9:
+        if not np.max(np.abs(q[..., k] - np.asarray(a)[along]), initial=0.0) <= 1e-9:  # NaN: not in place
             return False
     return True
 
