@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -40,3 +42,23 @@ def test_poke_is_unchanged_by_the_touch_parameter():
     b = ExplorationLoop(Experiment(mode="2d", object_name="ellipse", touches=2, seed=1, touch="poke")).run()
     assert [t["travel_m"] for t in a["touches"]] == [t["travel_m"] for t in b["touches"]]
     assert all(t["touch"] == "poke" and t["slide_m"] is None for t in b["touches"])
+
+
+def test_a_slides_decision_time_leaves_out_the_evaluations_checkpoints():
+    # The stream's checkpoints measure the estimate against the true object (simulation only): a
+    # touch's decision_ms is the estimator's update and the plan, whatever the evaluation costs.
+    loop = ExplorationLoop(Experiment(mode="2d", object_name="circle", touch="slide", touches=1, seed=0))
+    slept = []
+    for name in ("iou", "iou_reachable"):
+        real = getattr(loop.evaluator, name)
+
+        def slow(estimator, real=real):
+            time.sleep(0.2)
+            slept.append(0.2)
+            return real(estimator)
+
+        setattr(loop.evaluator, name, slow)
+    (t,) = loop.run()["touches"]
+    assert len(t["stream"]) >= 8  # ≥ 16 checkpoint evaluations, ≥ 3.2 s asleep inside the touch's update
+    asleep_in_stream_ms = 1e3 * (sum(slept) - 0.2 * 4)  # the prior's and the touch record's evaluations: outside
+    assert t["decision_ms"] < asleep_in_stream_ms  # ~0.9 s on a quiet machine, against ≥ 3.2 s

@@ -134,13 +134,13 @@ class ExplorationLoop:
                     time_s += 2.0 * poke.untilt_s - poke.untilt_m / self.motion.tip_speed_mps  # the planned time
             t1 = time.perf_counter()
             observe(self.estimator, point, normal if contact else sweep, contact)
-            stream, used = None, None
+            stream, used, checkpoint_s = None, None, 0.0
             if slide is not None:  # the slide's thinned contact stream, in the order sensed, with checkpoints
-                stream, used = observe_stream(self.estimator, self.evaluator, st, travel_m - st.travel_m,
-                                              time_s - st.time_s)
+                stream, used, checkpoint_s = observe_stream(self.estimator, self.evaluator, st,
+                                                            travel_m - st.travel_m, time_s - st.time_s)
                 point, normal = (slide.points_xyz[-1], slide.normals_xyz[-1]) if slide.n_contacts else \
                     (point, normal)
-            update_ms = (time.perf_counter() - t1) * 1e3
+            update_ms = (time.perf_counter() - t1 - checkpoint_s) * 1e3  # the estimator's, not the evaluation's
             record = touch_record(len(touches), plan.target_xyz, contact, point, normal,
                                   travel_m, time_s, plan_ms + update_ms, self.estimator, self.evaluator,
                                   path_xyz=path, path_followed_m=followed_m, slide=slide,

@@ -20,6 +20,7 @@ at approach speed, dwell, and the slide's ticks at the control rate.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -88,7 +89,8 @@ def _along(slide: SlideResult, lead_m: float, lead_s: float, motion: MotionModel
 
 
 def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float, time_before_s: float,
-                   every: int = 4, known_mean_m: float = 0.0005, known_sd_m: float = 0.0008) -> tuple[list[dict], int]:
+                   every: int = 4, known_mean_m: float = 0.0005, known_sd_m: float = 0.0008,
+                   ) -> tuple[list[dict], int, float]:
     """Feed the slide's contacts to the estimator in the order sensed (as the driver streams them) and,
     every ``every`` contacts, a checkpoint of the estimate: ``{"travel_m", "time_s", "iou",
     "iou_reachable", "contacts"}`` with the run's cumulative travel and time at that contact.
@@ -96,16 +98,18 @@ def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float,
     Thinning by variance: a contact the estimate already predicts (|μ(p)| < ``known_mean_m`` and
     σ(p) < ``known_sd_m``, predicted before its chunk is added) is skipped: a second lap over a
     known surface adds nothing but cost. The estimator takes a chunk through ``add_observations``
-    when it has one, else one ``add_observation`` each. Returns (checkpoints, contacts added).
+    when it has one, else one ``add_observation`` each. Returns (checkpoints, contacts added, seconds
+    spent on the checkpoints): the checkpoints measure the estimate against the true object, which only a
+    simulation has, so a touch's decision time leaves them out.
     """
     from tactile_common.fields import LABEL_CONTACT
 
     slide = st.slide
     out: list[dict] = []
     if slide is None or slide.n_contacts == 0:
-        return out, 0
+        return out, 0, 0.0
     batch = getattr(estimator, "add_observations", None)
-    K, used = slide.n_contacts, 0
+    K, used, checkpoint_s = slide.n_contacts, 0, 0.0
     normals = slide.normals_xyz
     for lo in range(0, K, every):
         hi = min(K, lo + every)
@@ -118,9 +122,11 @@ def observe_stream(estimator, evaluator, st: SlideTouch, travel_before_m: float,
             for k in keep:
                 estimator.add_observation(slide.points_xyz[k], normals[k], LABEL_CONTACT)
         if evaluator is not None and hi < K and len(keep):  # the touch's own record covers the last one
+            t0 = time.perf_counter()
             out.append({"travel_m": float(travel_before_m + st.contact_travel_m[hi - 1]),
                         "time_s": float(time_before_s + st.contact_time_s[hi - 1]),
                         "iou": evaluator.iou(estimator), "iou_reachable": evaluator.iou_reachable(estimator),
                         "contacts": hi})
-    return out, used
+            checkpoint_s += time.perf_counter() - t0
+    return out, used, checkpoint_s
 
