@@ -132,19 +132,33 @@ def start_directions(normal_xyz: np.ndarray, count: int) -> np.ndarray:
 
 
 class _Field:
-    """μ, ∇μ and σ² of the lattice, interpolated (points in the lattice's own dim)."""
+    """μ, ∇μ and σ² of the lattice, interpolated (points in the lattice's own dim).
+
+    In 3D μ and the three components of ∇μ are one interpolator over a (..., 4) stack: the cell
+    and its weights are found once for the four, and each channel is summed as alone (the same
+    numbers). In 2D each keeps its own (scipy's compiled bilinear path takes one channel only).
+    """
 
     def __init__(self, lattice: MapLattice) -> None:
         axes = tuple(np.asarray(a, dtype=float) for a in lattice.axes)
-        grads = np.gradient(np.asarray(lattice.mean_m, dtype=float), *axes)
+        mean = np.asarray(lattice.mean_m, dtype=float)
+        grads = np.gradient(mean, *axes)
+        grads = grads if lattice.dim > 1 else [grads]
         kw = dict(bounds_error=False, fill_value=np.nan)
-        self.mean = RegularGridInterpolator(axes, lattice.mean_m, **kw)
         self.var = RegularGridInterpolator(axes, lattice.variance_m2, **kw)
-        self.grad = [RegularGridInterpolator(axes, g, **kw) for g in (grads if lattice.dim > 1 else [grads])]
         self.dim = lattice.dim
+        if self.dim == 3:
+            self._stack = RegularGridInterpolator(axes, np.stack([mean, *grads], axis=-1), **kw)
+        else:
+            self._mean = RegularGridInterpolator(axes, lattice.mean_m, **kw)
+            self._grad = [RegularGridInterpolator(axes, g, **kw) for g in grads]
 
-    def grad_at(self, x: np.ndarray) -> np.ndarray:
-        return np.column_stack([g(x) for g in self.grad])
+    def mean_grad_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """μ (N,) and ∇μ (N, dim) at (N, dim) points (NaN off the lattice)."""
+        if self.dim == 3:
+            v = self._stack(x)
+            return v[:, 0], v[:, 1:]
+        return self._mean(x), np.column_stack([g(x) for g in self._grad])
 
 
 def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, step_m: float,
@@ -170,29 +184,34 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
     ok[:, 0] = np.isfinite(x).all(axis=1) & (np.linalg.norm(t, axis=1) > 0.5)
     alive = ok[:, 0].copy()
     for k in range(1, n_steps + 1):
-        prev = x.copy()
-        x = x + step_m * t
+        # only the paths still going: a path is valid up to its first failure, so the later points
+        # of an ended one are never read (they stay where it ended)
+        a = np.flatnonzero(alive)
+        if not len(a):
+            pts[:, k:] = x[:, None, :]
+            break
+        xa, ta, go = x[a] + step_m * t[a], t[a], np.ones(len(a), bool)
         for _ in range(2):
-            mu = field.mean(x)
-            g = field.grad_at(x)
+            mu, g = field.mean_grad_at(xa)
             g2 = np.sum(g * g, axis=1)
             good = np.isfinite(mu) & np.isfinite(g2) & (g2 > 1e-8)
-            x = np.where(good[:, None], x - (np.where(good, mu, 0.0) / np.where(good, g2, 1.0))[:, None] * g, x)
-            alive &= good
-        mu = field.mean(x)
-        alive &= np.isfinite(mu) & (np.abs(np.nan_to_num(mu, nan=np.inf)) < 0.25 * step_m)
-        alive &= np.linalg.norm(x - prev, axis=1) < 2.0 * step_m
-        g = field.grad_at(x)
+            xa = np.where(good[:, None], xa - (np.where(good, mu, 0.0) / np.where(good, g2, 1.0))[:, None] * g, xa)
+            go &= good
+        mu, g = field.mean_grad_at(xa)
+        go &= np.isfinite(mu) & (np.abs(np.nan_to_num(mu, nan=np.inf)) < 0.25 * step_m)
+        go &= np.linalg.norm(xa - x[a], axis=1) < 2.0 * step_m
         gn = np.linalg.norm(g, axis=1, keepdims=True)
         nh = np.where(gn > 1e-9, g / np.maximum(gn, 1e-12), 0.0)
-        tt = t - np.sum(t * nh, axis=1, keepdims=True) * nh
+        tt = ta - np.sum(ta * nh, axis=1, keepdims=True) * nh
         tn = np.linalg.norm(tt, axis=1, keepdims=True)
-        alive &= tn[:, 0] > 1e-6
-        t = np.where(tn > 1e-6, tt / np.maximum(tn, 1e-12), t)
+        go &= tn[:, 0] > 1e-6
+        t[a] = np.where(tn > 1e-6, tt / np.maximum(tn, 1e-12), ta)
         if d == 3:
-            alive &= x[:, 2] >= min_z_m
-            if surface_ok is not None and alive.any():  # only the paths still going
-                alive[alive] = surface_ok(x[alive], nh[alive])
+            go &= xa[:, 2] >= min_z_m
+            if surface_ok is not None and go.any():  # only the paths still going
+                go[go] = surface_ok(xa[go], nh[go])
+        x[a] = xa
+        alive[a] = go
         pts[:, k] = x
         ok[:, k] = alive
     var = field.var(pts.reshape(-1, d)).reshape(M, n_steps + 1)
