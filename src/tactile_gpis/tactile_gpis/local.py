@@ -29,8 +29,10 @@ pending ones reach ``anchor_batch`` of the anchor count, or the oldest waited
 The lattice mean is exact-blended on the *band*: nodes with |mu_A| < ``band_m`` or within
 ``band_m`` of an observation (the band only grows); elsewhere it is mu_A interpolated
 (multilinear) from a coarse lattice (every ``coarse_stride``-th node), which only has to
-get the sign right there. The lattice variance is sigma2_A interpolated the same way (an
-upper bound); variances at given points (the candidates) use the formula above.
+get the sign right there. The lattice variance is the formula above on the band (each expert
+keeps |W[:, node]|^2 of its band nodes up to date with W, so sigma2_e = k0 - |W[:, node]|^2 costs
+no solve) and sigma2_A interpolated the same way elsewhere (an upper bound); variances at given
+points (the candidates) use the formula above.
 """
 
 from __future__ import annotations
@@ -138,6 +140,7 @@ class _Leaf:
         self.w = np.zeros(0)
         self._wbuf = np.zeros((0, 0))
         self.contrib = np.zeros(0)
+        self.colsq = np.zeros(0)  # per band node: |W[:, node]|^2 (the expert's variance there is k0 - colsq)
         self.cand: Optional[_CandCache] = None  # the last candidates' columns (predict_candidates)
 
     @property
@@ -267,6 +270,7 @@ class LocalGPIS:
         self._num = np.zeros(M)  # sum_e w_e r_e on band nodes
         self._wsum = np.zeros(M)  # sum_e w_e on band nodes
         self._mu_a_band = np.zeros(M)  # exact mu_A on band nodes
+        self._vnum = np.zeros(M)  # sum_e w_e sigma2_e on band nodes
         self._refresh_coarse()
         self._add_band_nodes(np.flatnonzero(np.abs(self._mu_a_lat) < self.band_m))
 
@@ -291,12 +295,12 @@ class LocalGPIS:
     def state_bytes(self) -> int:
         """Bytes held by the factors, caches (band and candidate columns), row arrays and
         lattice arrays (the state's size)."""
-        b = sum(lf.gp.nbytes() + lf._wbuf.nbytes + lf.rows.nbytes + 3 * lf.nodes.nbytes
+        b = sum(lf.gp.nbytes() + lf._wbuf.nbytes + lf.rows.nbytes + 4 * lf.nodes.nbytes
                 + (lf.cand.nbytes() if lf.cand is not None else 0) for lf in self.leaves)
         b += self.anchor._L.nbytes + sum(v.nbytes for v in (self.anchor._V or []))
         b += self._X.nbytes + 5 * self._y.nbytes
         b += sum(a.nbytes for a in (self._band, self._num, self._wsum, self._mu_a_band, self._mu_a_lat,
-                                     self._var_a_lat))
+                                     self._var_a_lat, self._vnum))
         return int(b)
 
     def _box_arrays(self) -> dict:
@@ -362,6 +366,7 @@ class LocalGPIS:
             K = cross_cov(self.kernel, lf.gp.X, lf.gp.t, self._lattice[lf.nodes], np.full(len(lf.nodes), VALUE))
             lf.set_W(lf.gp.solve(K) if lf.gp.n else K)
             self._update_contrib(lf)
+            self._update_variance(lf, np.sum(lf.W * lf.W, axis=0))
 
     def _update_contrib(self, lf: _Leaf) -> None:
         if not len(lf.nodes):
@@ -369,6 +374,11 @@ class LocalGPIS:
         c = lf.W.T @ lf.gp.beta if lf.gp.n else np.zeros(len(lf.nodes))
         self._num[lf.nodes] += lf.w * (c - lf.contrib)
         lf.contrib = c
+
+    def _update_variance(self, lf: _Leaf, colsq: np.ndarray) -> None:
+        """New |W|^2 columns of an expert's band nodes: its variance k0 - colsq there in the blend."""
+        self._vnum[lf.nodes] += lf.w * (lf.colsq - colsq)
+        lf.colsq = colsq
 
     # -- band ------------------------------------------------------------------
     def _add_band_nodes(self, idx: np.ndarray) -> None:
@@ -398,12 +408,15 @@ class LocalGPIS:
             c = Wn.T @ lf.gp.beta
         else:
             Wn, c = np.zeros((0, len(idx))), np.zeros(len(idx))
+        cs = np.sum(Wn * Wn, axis=0)
         lf.append_W_cols(Wn)
         lf.nodes = np.concatenate([lf.nodes, idx])
         lf.w = np.concatenate([lf.w, w])
         lf.contrib = np.concatenate([lf.contrib, c])
+        lf.colsq = np.concatenate([lf.colsq, cs])
         self._wsum[idx] += w
         self._num[idx] += w * c
+        self._vnum[idx] += w * (self._k0 - cs)
 
     def _near_nodes(self, x: np.ndarray) -> np.ndarray:
         """Lattice ids within band_m (box) of x."""
@@ -468,6 +481,7 @@ class LocalGPIS:
                 dc = W2.T @ st.beta
                 self._num[lf.nodes] += lf.w * dc
                 lf.contrib = lf.contrib + dc
+                self._update_variance(lf, lf.colsq + np.sum(W2 * W2, axis=0))
             else:
                 lf.gp.commit(st)
         owner = self._owner(x)
@@ -528,6 +542,7 @@ class LocalGPIS:
         if len(parent.nodes):  # swap the parent's band contribution for the children's
             self._num[parent.nodes] -= parent.w * parent.contrib
             self._wsum[parent.nodes] -= parent.w
+            self._vnum[parent.nodes] -= parent.w * (self._k0 - parent.colsq)
         self.leaves.remove(parent)
         self.leaves.extend(kids)
         self._boxes = None
@@ -570,8 +585,14 @@ class LocalGPIS:
         return self._band_mean()
 
     def lattice_variance(self) -> np.ndarray:
-        """(M,) the anchor GP's variance on the lattice (interpolated; an upper bound)."""
-        return np.maximum(self._var_a_lat, 0.0)
+        """(M,) variance on the lattice (C order): on the band min(sigma2_A, the experts' blend), as
+        :meth:`predict`; elsewhere the anchor GP's (interpolated; an upper bound). Each expert's
+        variance at its band nodes is k0 - |W[:, node]|^2, kept up to date with W."""
+        out = np.maximum(self._var_a_lat, 0.0)
+        b = self._band & (self._wsum > 0)
+        blend = np.maximum(self._vnum[b] / self._wsum[b], 0.0)
+        out[b] = np.minimum(out[b], blend)
+        return out
 
     @property
     def band_mask(self) -> np.ndarray:
