@@ -167,6 +167,31 @@ def test_the_maps_band_variance_is_the_blended_prediction_through_splits_and_anc
     np.testing.assert_array_equal(v[~band], np.maximum(loc._var_a_lat[~band], 0.0))
 
 
+def test_an_expert_activated_without_band_nodes_takes_them_after_its_factor_grew():
+    # A query can activate an expert before any band node lies in its support; its W then has no
+    # columns and its appends add no rows to it. Band nodes that reach it later (the band only grows)
+    # must get their columns against the whole factor (a 3D slide run crashed here: "could not
+    # broadcast input array from shape (80,0) into shape (84,0)").
+    from tactile_gpis.local import _Leaf
+
+    kernel = ShapeEstimator.from_params({"mode": "3d", "method": "local"}).local.kernel
+    lf = _Leaf(np.zeros(3), np.full(3, 0.1), 0, kernel, 3, 0.012, 0.25, 1e-10)
+    pts, nrm = lobed_surface(40)
+    X, t = np.vstack([pts[:3], gradient_rows(pts[:3])[0]]), np.r_[np.full(3, VALUE), gradient_rows(pts[:3])[1]]
+    lf.gp.build(X, t, np.zeros(len(t)), np.full(len(t), 1e-6))
+    lf.active = True
+    lf.set_W(np.zeros((lf.gp.n, 0)))
+    for p in pts[3:]:  # 37 contacts x 4 rows: the factor outgrows the buffer
+        Xa, ta = np.vstack([p, gradient_rows(p[None])[0]]), np.r_[VALUE, gradient_rows(p[None])[1]]
+        K12 = cross_cov(kernel, lf.gp.X, lf.gp.t, Xa, ta)
+        lf.gp.commit(lf.gp.append(Xa, ta, np.zeros(4), np.full(4, 1e-6), K12, cross_cov(kernel, Xa, ta, Xa, ta)))
+    assert lf.gp.n > len(lf._wbuf)
+    nodes = np.array([[0.5, 0.0, 0.06], [0.52, 0.01, 0.07]])
+    C = lf.gp.solve(cross_cov(kernel, lf.gp.X, lf.gp.t, nodes, np.full(2, VALUE)))
+    lf.append_W_cols(C)
+    np.testing.assert_array_equal(lf.W, C)
+
+
 def test_auto_switches_at_the_threshold_and_keeps_the_estimate():
     pts, nrm = star_contacts(60, seed=1)
     params = {"mode": "2d", "lattice.points_per_axis_2d": 64, "duplicate_distance_m": 0.0}

@@ -162,11 +162,17 @@ class _Leaf:
         self._wbuf[n_old:need] = R
 
     def append_W_cols(self, C: np.ndarray) -> None:
-        """Columns for new nodes (gp.n, k)."""
-        n = self.gp.n
-        buf = np.zeros((len(self._wbuf) if len(self._wbuf) >= n else n + 16, self._wbuf.shape[1] + C.shape[1]))
-        buf[:n, : self._wbuf.shape[1]] = self._wbuf[:n]
-        buf[:n, self._wbuf.shape[1]:] = C
+        """Columns for new nodes (gp.n, k).
+
+        An expert a query activated before any band node reached it has W without columns, and its
+        appends add no rows to it (nothing to hold): the buffer may then be shorter than the factor,
+        and only the columns it has are copied.
+        """
+        n, k = self.gp.n, self._wbuf.shape[1]
+        buf = np.zeros((len(self._wbuf) if len(self._wbuf) >= n else n + 16, k + C.shape[1]))
+        if k:
+            buf[:n, :k] = self._wbuf[:n]
+        buf[:n, k:] = C
         self._wbuf = buf
 
     def weight(self, X: np.ndarray, grad: bool = False):
