@@ -150,7 +150,7 @@ class _Field:
         if self.dim == 3:
             self._stack = RegularGridInterpolator(axes, np.stack([mean, *grads], axis=-1), **kw)
         else:
-            self._mean = RegularGridInterpolator(axes, lattice.mean_m, **kw)
+            self._mean = RegularGridInterpolator(axes, mean, **kw)
             self._grad = [RegularGridInterpolator(axes, g, **kw) for g in grads]
 
     def mean_grad_at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
