@@ -1,5 +1,6 @@
-"""ArmCommander.slide in one process (no other nodes): the servo's steps go out as replacing
-trajectories, and the e-stop and the joint-state watchdog stop a slide like any motion."""
+"""ArmCommander in one process (no other nodes): a slide's servo steps go out as replacing
+trajectories, the e-stop and the joint-state watchdog stop a slide like any motion, and a motion
+is judged late by the joint states read, not by a clock they lag behind."""
 
 from __future__ import annotations
 
@@ -35,8 +36,9 @@ def arm():
         rclpy.shutdown()
 
 
-def _state(arm, t_s):
-    msg = JointState(name=list(arm.model.joint_names), position=[float(v) for v in arm.q0],
+def _state(arm, t_s, q=None):
+    q = arm.q0 if q is None else q
+    msg = JointState(name=list(arm.model.joint_names), position=[float(v) for v in q],
                      velocity=[0.0] * arm.model.nq)
     msg.header.stamp.sec, msg.header.stamp.nanosec = int(t_s), int(round((t_s % 1) * 1e9))
     arm._on_joint_state(msg)
@@ -134,3 +136,43 @@ def test_an_approach_toward_the_table_is_shortened_to_end_inside_the_box():
     finally:
         node.destroy_node()
         rclpy.shutdown()
+
+
+@pytest.mark.parametrize("stamps", ["node clock", "another clock"])
+def test_a_motion_is_judged_late_by_the_joint_states_read_not_the_clock(arm, stamps):
+    """A commander behind on its joint-state queue (a loaded machine: the clock's newest tick is read,
+    the states queue up) must not abort a motion the arm is making on time: only a state stamped after
+    the deadline and away from the goal is late. Stamps on another clock: judged by the clock."""
+    now = [100.0]
+    arm.now_s = lambda: now[0]
+    _state(arm, 100.0)
+    assert arm.follow_path(np.array([[0.45, 0.05, 0.06]]))
+    traj = [np.array(p.positions) for p in arm.sent[-1].points]
+    start, task = arm._task.start_s, arm._task
+    deadline = start + task.traj.duration_s + arm.cfg.goal_time_tolerance_s
+    offset = 0.0 if stamps == "node clock" else -1e6
+    now[0] = deadline + 1.0  # the clock is past the deadline...
+    _state(arm, offset + start + 0.5 * task.traj.duration_s, traj[len(traj) // 2])  # ...the states mid-motion
+    arm._update()
+    if stamps == "another clock":  # nothing to judge by but the clock
+        assert arm.get_result() == TaskResult.ABORTED and "goal not reached" in arm.last_task.reason
+        return
+    assert not arm.is_task_complete()  # not late: the arm was on its way when this state was taken
+    _state(arm, deadline + 0.5, traj[len(traj) // 2])  # a state after the deadline, short of the goal
+    arm._update()
+    assert arm.get_result() == TaskResult.ABORTED and "goal not reached" in arm.last_task.reason
+    assert arm.sent[-1].points == []  # stopped
+
+
+def test_a_lagging_reader_sees_a_motion_through_when_the_states_arrive(arm):
+    now = [100.0]
+    arm.now_s = lambda: now[0]
+    _state(arm, 100.0)
+    assert arm.follow_path(np.array([[0.45, 0.05, 0.06]]))
+    traj = [np.array(p.positions) for p in arm.sent[-1].points]
+    start, duration = arm._task.start_s, arm._task.traj.duration_s
+    now[0] = start + duration + arm.cfg.goal_time_tolerance_s + 1.0
+    for k, q in enumerate(traj):  # the queue drains: every state arrives after the deadline by the clock
+        _state(arm, start + duration * k / (len(traj) - 1), q)
+        arm._update()
+    assert arm.get_result() == TaskResult.SUCCEEDED, arm.last_task.reason

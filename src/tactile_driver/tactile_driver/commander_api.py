@@ -61,6 +61,10 @@ from tactile_driver.slide_loop import FrameContact, SlideLoop, stopping_trajecto
 from tactile_driver.slide_servo import ContactSense, SlideServoConfig, SlideStop
 from tactile_driver.trajectory import TimedTrajectory, TrajectoryError
 
+# Joint states stamped further behind the node clock than this are taken as on another clock (the STATE
+# queue holds 10 s at 100 Hz: a reader can be that far behind and still be reading the node clock).
+MAX_STATE_LAG_S = 10.0
+
 
 class TaskResult(enum.Enum):
     UNKNOWN = 0
@@ -445,6 +449,16 @@ class ArmCommander:
     def now_s(self) -> float:
         return self.node.get_clock().now().nanoseconds * 1e-9
 
+    def state_time_s(self) -> float:
+        """The node-clock time the newest joint state read describes the arm at (its stamp).
+
+        A process behind on its joint-state queue knows where the arm was, not where it is: a motion is
+        judged late only by states stamped after its deadline (ros2_control's goal_time_tolerance is in
+        controller time too). The clock's now if the stamps are not on the node clock (none yet, more
+        than ``MAX_STATE_LAG_S`` behind, or ahead of it)."""
+        now = self.now_s()
+        return self.q_stamp_s if now - MAX_STATE_LAG_S <= self.q_stamp_s <= now else now
+
     def _plan_start(self) -> tuple[np.ndarray, np.ndarray]:
         """Joint vector and tip to plan from: measured, or (dry run without state) the last plan's end / home."""
         if self.cfg.dry_run and self._dry_q is not None:
@@ -674,11 +688,12 @@ class ArmCommander:
             return
         err = float(np.max(np.abs(self.q - task.traj.positions_rad[-1])))
         end_s = task.start_s + task.traj.duration_s
+        late = self.state_time_s() - task.start_s > task.traj.duration_s + self.cfg.goal_time_tolerance_s
         if self.cfg.start_lead_s > 0:
             # Timed starts (simulation): the motion is over when the arm is exactly at its end (the
             # controller may have started it late); the next one is then planned from those joints.
             if err > 1e-9:
-                if elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+                if late:
                     self._halt(TaskResult.ABORTED, f"goal not reached: joint error {err:.3f} rad")
                 return
             end_s = task.extra.get("arrived_s", self.q_stamp_s)
@@ -697,5 +712,5 @@ class ArmCommander:
             return  # no word from the driver (a rig without it): wait a fixed latency for a late contact
         if err <= self.cfg.goal_tolerance_rad:
             self._finish(TaskResult.SUCCEEDED, f"{task.traj.length_m:.3f} m in {elapsed:.2f} s")
-        elif elapsed > task.traj.duration_s + self.cfg.goal_time_tolerance_s:
+        elif late:
             self._halt(TaskResult.ABORTED, f"goal not reached: joint error {err:.3f} rad")
