@@ -49,9 +49,11 @@ class Rig:
         self.t += dt
         self.cycle.tick()
 
-    def answer(self, request=None, status="ok", detail="", target=None):
+    def answer(self, request=None, status="ok", detail="", target=None, judged=None):
         req = request or self.sent[-1]
         extra = None if target is None else {"target_xyz_m": ",".join(map(repr, target))}
+        if judged is not None:  # the planner's judgment: (fruitless targets text, the target's variance text)
+            extra.update(fruitless_xyz_m=judged[0], target_var_m2=judged[1])
         self.cycle.on_answer(PlannerAnswer(req.request_id, status, detail, req.request_id if status == "ok" else 0, 5.0,
                                            extra))
 
@@ -322,6 +324,26 @@ def test_every_request_carries_the_targets_so_far_and_those_reported_unreachable
     assert r.sent[-1].visited_xyz_m == (a, b, c) and r.sent[-1].excluded_xyz_m == (b,)
     # through the request's key/values, bit for bit
     assert PlanRequest.from_values(r.sent[-1].values()) == r.sent[-1]
+
+
+def test_every_request_hands_back_the_planners_last_judgment_of_the_touches():
+    """Fruitless touches (tactile_planner.fruitless) and the last target's variance: as the last ok answer
+    gave them, bit for bit, so a restarted planner judges the last touch as the one that died would."""
+    r = Rig(touches=5)
+    r.cycle.on_tip(START)
+    assert r.sent[0].fruitless_xyz_m is None and r.sent[0].last_target_var_m2 is None  # nothing to hand back
+    a, b = (0.41, 0.01, 0.06), (0.45, -0.02, 0.06)
+    r.answer(target=a, judged=("", repr(1.25e-4)))
+    r.cycle.on_observation(5, np.zeros(1))
+    r.report(obs_ns=5)
+    assert r.sent[-1].fruitless_xyz_m == () and r.sent[-1].last_target_var_m2 == 1.25e-4
+    r.answer(target=b, judged=(",".join(map(repr, a)), repr(3.5e-5)))
+    r.cycle.on_observation(6, np.zeros(1))
+    r.report(obs_ns=6)
+    assert r.sent[-1].fruitless_xyz_m == (a,) and r.sent[-1].last_target_var_m2 == 3.5e-5
+    assert PlanRequest.from_values(r.sent[-1].values()) == r.sent[-1]
+    with pytest.raises(ValueError, match="last_target_var_m2 must be a finite number"):
+        PlanRequest.from_values({"request_id": "1", "last_target_var_m2": "nan"})
 
 
 def test_an_answer_without_its_target_stops_the_history_rather_than_sending_a_wrong_one():

@@ -19,7 +19,8 @@ def test_same_map_twice_gives_a_new_target_far_enough():
     # Without the memory the most uncertain point is chosen again.
     planner.reset()
     assert np.allclose(planner.plan(m, tip).target_xyz, first.target_xyz)
-    off = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "revisit_radius_m": 0.0}, seed=0)
+    off = TouchPlanner.from_params({"mode": "2d", "strategy": "uncertainty", "revisit_radius_m": 0.0,
+                                    "fruitless_radius_m": 0.0}, seed=0)
     assert np.allclose(off.plan(m, tip).target_xyz, off.plan(m, tip).target_xyz)
 
 
@@ -77,19 +78,23 @@ def test_earlier_targets_are_revisited_rather_than_stopping_when_nothing_else_is
 
 @pytest.mark.parametrize("strategy", ["info_travel", "random", "uncertainty"])
 def test_a_fresh_planner_told_the_history_decides_as_the_one_that_lived_through_it(strategy):
-    """The planner's only memory is the targets chosen so far (and the k-th decision's random draws come
-    from (seed, k)): a planner restarted mid-run and given that history makes the same touch sequence."""
+    """The planner's only memory is the targets chosen so far and its judgment of them (fruitless touches,
+    the last target's variance), and the k-th decision's random draws come from (seed, k): a planner
+    restarted mid-run and given that history makes the same touch sequence."""
     maps = [sphere_map(96, 2, seed=s) for s in (1, 2, 3, 4, 5)]
     tip = np.array([0.33, 0.0, 0.06])
     params = {"mode": "2d", "strategy": strategy, "revisit_radius_m": 0.005}
     lived = TouchPlanner.from_params(params, seed=7)
-    targets = [lived.plan(m, tip).target_xyz for m in maps]
-    history = []
+    answers = [lived.plan(m, tip) for m in maps]
+    targets = [a.target_xyz for a in answers]
+    assert any(len(a.fruitless_xyz) for a in answers)  # the fruitless judgment is part of the memory here
+    history, judged = [], (None, None)
     for m, expected in zip(maps, targets):
         fresh = TouchPlanner.from_params(params, seed=7)
-        res = fresh.plan(m, tip, None, np.array(history).reshape(-1, 3))
+        res = fresh.plan(m, tip, None, np.array(history).reshape(-1, 3), 0, *judged)
         assert res.ok and np.array_equal(res.target_xyz, expected)
         history.append(res.target_xyz)
+        judged = (res.fruitless_xyz, res.target_var_m2)  # what the answer hands back
     assert len({tuple(t) for t in targets}) == len(targets)  # the memory mattered: no target twice
     # without the history a restarted planner repeats itself (what the history prevents)
     assert np.array_equal(TouchPlanner.from_params(params, seed=7).plan(maps[0], tip).target_xyz, targets[0])

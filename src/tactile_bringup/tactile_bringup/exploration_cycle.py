@@ -124,6 +124,9 @@ class ExplorationCycle:
         # unreachable. Not sent once an answer did not name its target.
         self._targets: dict[int, tuple] = {}  # goal stamp -> its target
         self._excluded: list[tuple] = []
+        # the planner's judgment of the touches so far, as its last ok answer gave it (tactile_planner.fruitless)
+        self._fruitless: Optional[tuple] = None
+        self._last_target_var_m2: Optional[float] = None
         self._history_known = True
 
     @property
@@ -262,8 +265,9 @@ class ExplorationCycle:
         request_id = max(int(self._next_id()), self._last_id + 1)
         self._last_id = request_id
         history = (tuple(self._targets.values()), tuple(self._excluded)) if self._history_known else (None, None)
+        judged = (self._fruitless, self._last_target_var_m2) if self._history_known else (None, None)
         self.request = PlanRequest(request_id, int(min_map_stamp_ns), self.plan_from_xyz, *history,
-                                   misses_before_contact(self.run.touches))
+                                   misses_before_contact(self.run.touches), *judged)
         self.goal_stamp_ns, self.report, self._early_report = None, None, None
         self._enter(Phase.PLANNING)
         self._publish()
@@ -304,7 +308,11 @@ class ExplorationCycle:
             self._history_known = False
             return
         self._targets[answer.goal_stamp_ns] = target
-
+        try:  # an answer without them (an older planner): the planner keeps its own memory
+            self._fruitless, self._last_target_var_m2 = answer.fruitless_xyz_m, answer.target_var_m2
+        except ValueError as exc:
+            self.log.warning(f"planner answer {answer.request_id}: {exc}; not handed back")
+            self._fruitless = self._last_target_var_m2 = None
     def _enter(self, phase: Phase) -> None:
         self.phase = phase
         self._t_phase = self._clock_s()

@@ -170,13 +170,15 @@ def _replay_session(files: Sequence[Path], exp: Experiment, run: RunRecorder, pl
                     req = requests.get(goal_ns)
                     if req is not None and req.start_xyz_m is not None:
                         tip = np.asarray(req.start_xyz_m, dtype=float)
-                    excluded = visited = None  # the graph's history, when the request carried it
+                    excluded = visited = fruitless = last_var = None  # the graph's history, if the request had it
                     if req is not None:
-                        excluded, visited = (None if h is None else np.array(h, dtype=float).reshape(-1, 3)
-                                             for h in (req.excluded_xyz_m, req.visited_xyz_m))
+                        excluded, visited, fruitless = (None if h is None else np.array(h, dtype=float).reshape(-1, 3)
+                                                        for h in (req.excluded_xyz_m, req.visited_xyz_m,
+                                                                  req.fruitless_xyz_m))
+                        last_var = req.last_target_var_m2
                     misses = req.misses_before_contact if req is not None else misses_before_contact(run.touches)
-                    plan = planner.plan(run.estimator.map_array(), tip, excluded, visited, misses) \
-                        if planner is not None else None
+                    plan = planner.plan(run.estimator.map_array(), tip, excluded, visited, misses, fruitless,
+                                        last_var) if planner is not None else None
                     used.add(obs_ns)
                     taken.append(observations[obs_ns])
                     record = run.add_touch(goals.get(goal_ns), observations.pop(obs_ns), travel, duration,

@@ -60,6 +60,16 @@ def _float(values: Mapping[str, str], key: str, default: float = 0.0) -> float:
         raise ValueError(f"{key} must be a number, got {text!r}") from None
 
 
+def _optional_float(values: Mapping[str, str], key: str) -> Optional[float]:
+    """A finite number, or None when the key is absent; ValueError otherwise."""
+    if key not in values:
+        return None
+    value = _float(values, key, float("nan"))
+    if not math.isfinite(value):
+        raise ValueError(f"{key} must be a finite number, got {values[key]!r}")
+    return value
+
+
 def xyz_text(xyz: Optional[tuple]) -> str:
     """A point as exact text, ``'x,y,z'`` (``repr``: it reads back bit for bit); None → ``''``."""
     return "" if xyz is None else ",".join(repr(float(v)) for v in xyz)
@@ -111,7 +121,9 @@ class PlanRequest:
     answer is a function of the request and the map alone. None: not told
     (the planner uses what it remembers). ``misses_before_contact``: how many
     touches met nothing while none has met the object yet (0 after the first
-    contact; the planner's ``search_after_misses``).
+    contact; the planner's ``search_after_misses``). ``fruitless_xyz_m`` and
+    ``last_target_var_m2``: the planner's judgment of earlier touches, as its
+    last answer gave them (:class:`PlannerAnswer`; tactile_planner.fruitless).
     """
 
     request_id: int
@@ -120,15 +132,19 @@ class PlanRequest:
     visited_xyz_m: Optional[tuple] = None
     excluded_xyz_m: Optional[tuple] = None
     misses_before_contact: int = 0
+    fruitless_xyz_m: Optional[tuple] = None
+    last_target_var_m2: Optional[float] = None
 
     def values(self) -> dict:
         out = {"request_id": str(self.request_id), "min_map_stamp_ns": str(self.min_map_stamp_ns),
                "start_xyz_m": xyz_text(self.start_xyz_m),
                "misses_before_contact": str(self.misses_before_contact)}
-        for key in ("visited_xyz_m", "excluded_xyz_m"):
+        for key in ("visited_xyz_m", "excluded_xyz_m", "fruitless_xyz_m"):
             text = _xyz_list_text(getattr(self, key))
             if text is not None:
                 out[key] = text
+        if self.last_target_var_m2 is not None:
+            out["last_target_var_m2"] = repr(float(self.last_target_var_m2))
         return out
 
     @classmethod
@@ -140,7 +156,8 @@ class PlanRequest:
         if misses < 0:
             raise ValueError(f"misses_before_contact must be >= 0, got {misses}")
         return cls(request_id, _int(values, "min_map_stamp_ns"), _xyz(values, "start_xyz_m"),
-                   _xyz_list(values, "visited_xyz_m"), _xyz_list(values, "excluded_xyz_m"), misses)
+                   _xyz_list(values, "visited_xyz_m"), _xyz_list(values, "excluded_xyz_m"), misses,
+                   _xyz_list(values, "fruitless_xyz_m"), _optional_float(values, "last_target_var_m2"))
 
 
 @dataclass(frozen=True)
@@ -165,6 +182,16 @@ class PlannerAnswer:
     def target_xyz_m(self) -> Optional[tuple]:
         """The chosen target (None: not said); raises ValueError when malformed."""
         return _xyz(self.extra or {}, "target_xyz_m")
+
+    @property
+    def target_var_m2(self) -> Optional[float]:
+        """The map's variance at the chosen target when it was chosen (None: not said)."""
+        return _optional_float(self.extra or {}, "target_var_m2")
+
+    @property
+    def fruitless_xyz_m(self) -> Optional[tuple]:
+        """The targets of the touches the planner judged fruitless so far (None: not said)."""
+        return _xyz_list(self.extra or {}, "fruitless_xyz_m")
 
     def values(self) -> dict:
         out = {"request_id": str(self.request_id), "detail": self.detail, "stamp_ns": str(self.goal_stamp_ns),

@@ -147,8 +147,9 @@ class SocPlannerNode(Node):
         # The request's history when it carries one (a restarted planner decides as before), else our memory.
         excluded = req.excluded_xyz_m if req.excluded_xyz_m is not None else list(self.excluded.values())
         visited = None if req.visited_xyz_m is None else np.array(req.visited_xyz_m, dtype=float).reshape(-1, 3)
+        fruitless = None if req.fruitless_xyz_m is None else np.array(req.fruitless_xyz_m, dtype=float).reshape(-1, 3)
         res = self.planner.plan(self.map, start, np.array(excluded, dtype=float).reshape(-1, 3), visited,
-                                req.misses_before_contact)
+                                req.misses_before_contact, fruitless, req.last_target_var_m2)
         stamp = time_from_ns(req.request_id)  # the goal's id: the request it answers
         goal = path = None
         if res.ok:
@@ -226,6 +227,9 @@ class SocPlannerNode(Node):
                 ("n_unreachable", res.n_unreachable), ("n_excluded", res.n_excluded))})
             if res.ok:
                 extra["target_xyz_m"] = xyz_text(res.target_xyz)
+                if np.isfinite(res.target_var_m2):
+                    extra["target_var_m2"] = repr(float(res.target_var_m2))
+            extra["fruitless_xyz_m"] = ";".join(xyz_text(p) for p in res.fruitless_xyz)
         goal_ns = request_id if res is not None and res.ok else 0
         return answer_msg(PlannerAnswer(request_id, status, message, goal_ns,
                                         res.decision_ms if res is not None else float("nan"), extra))

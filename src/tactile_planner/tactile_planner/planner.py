@@ -26,6 +26,7 @@ from tactile_common.wrist import PANDA_WRIST_BANDS_FLAT_M
 
 from .graph import CLEARANCES, FreeSpaceGraph, build_free_graph
 from .foot import foot_probes
+from .fruitless import FruitlessTouches
 from .maps import Candidates, MapError, parse_variance_map
 from .pocket import closer_pretouch, pocket_entries
 from .paths import path_length_m, shortcut
@@ -130,6 +131,11 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                             "there and back; the commander's plans for the Panda: 4.8–8 s/rad over 30–75°)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
+    "fruitless_radius_m": (0.02, "set aside candidates within this distance of the target of a touch after which the "
+                           "map's variance there did not drop (the finger sensed elsewhere: tactile_planner.fruitless; "
+                           "revisited only when nothing else is left; 0 = off)", {"ge": 0.0}),
+    "fruitless_var_ratio": (0.9, "a touch is fruitless when the variance at its target is still at least this "
+                            "fraction of what it was when it was chosen", {"gt": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
                            "finger would touch them with its side); -1 = off", {"ge": -1.0, "le": 1.0}),
     "tip_speed_mps": (0.1, "free-space tip speed (motion model)", {"gt": 0.0}),
@@ -167,6 +173,9 @@ NODE_PARAMETERS: dict[str, tuple[Any, str]] = {
 
 #: The reason a candidate is excluded when its approach would put the vertical rod into the estimate.
 SHAFT_REASON = "the finger's shaft would enter the estimate"
+FRUITLESS_REASON = "near a touch that changed nothing"
+# reasons that set a candidate aside but do not rule it out: revisited when nothing else is left
+SOFT_REASONS = ("already targeted", FRUITLESS_REASON)
 FOOT_PROBE_LIFT_M = 0.002  # a foot probe's and a table ring's height above the lowest tip height (off the graph's floor)
 FOOT_PROBE_SLACK_M = 0.001  # its approach ends this much farther out than the rod's radius and gap need
 
@@ -200,6 +209,10 @@ class PlanResult:
     # ends its path with the entry point twice (+z, then the axis: the finger turns there) and the
     # pre-touch point (tactile_planner.tilt).
     path_axes_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # the map's variance of f at the target (m²), and the targets of the touches judged fruitless so far
+    # (tactile_planner.fruitless): what the next request hands back to a restarted planner
+    target_var_m2: float = float("nan")
+    fruitless_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def finger_axis_xyz(self) -> np.ndarray:
@@ -261,10 +274,13 @@ class TouchPlanner:
         #: are skipped; ``reset()`` forgets them. They are the planner's only
         #: memory: the k-th decision draws its random numbers from (seed, k).
         self.visited: list[np.ndarray] = []
+        #: Targets of touches that changed nothing there (tactile_planner.fruitless), judged from the maps.
+        self.fruitless = FruitlessTouches(float(p["fruitless_var_ratio"]), float(p["fruitless_radius_m"]))
 
     def reset(self) -> None:
         """Forget the chosen targets (a new exploration)."""
         self.visited = []
+        self.fruitless.reset()
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], seed: int) -> "TouchPlanner":
@@ -274,7 +290,8 @@ class TouchPlanner:
     # ------------------------------------------------------------------
     def plan(self, map_array: np.ndarray, tip_xyz: np.ndarray,
              excluded_targets: np.ndarray | None = None,
-             visited_targets: np.ndarray | None = None, misses_before_contact: int = 0) -> PlanResult:
+             visited_targets: np.ndarray | None = None, misses_before_contact: int = 0,
+             fruitless_targets: np.ndarray | None = None, last_target_var_m2: float | None = None) -> PlanResult:
         """Choose the next touch. Never raises on bad input: the status says why there is no goal.
 
         ``visited_targets`` ((K, 3), world): the targets chosen before this
@@ -283,10 +300,14 @@ class TouchPlanner:
         what this planner remembers. The chosen target is appended.
         ``misses_before_contact``: how many touches met nothing while none has met the
         object yet (0 after the first contact; ``search_after_misses``).
+        ``fruitless_targets`` ((F, 3)) and ``last_target_var_m2``: the rest of that memory, as the
+        last answer gave them (``PlanResult.fruitless_xyz``, ``target_var_m2``; tactile_planner.fruitless).
         """
         t0 = time.perf_counter()
         if visited_targets is not None:
             self.visited = [row.copy() for row in np.asarray(visited_targets, dtype=float).reshape(-1, 3)]
+        if fruitless_targets is not None or last_target_var_m2 is not None:
+            self.fruitless.restore(fruitless_targets, last_target_var_m2, self.visited)
         try:
             res = self._plan(map_array, tip_xyz, excluded_targets, int(misses_before_contact))
         except MapError as exc:
@@ -294,6 +315,7 @@ class TouchPlanner:
         except TravelError as exc:
             res = PlanResult("solver_failed", f"travel-cost solve failed: {exc}")
         res.decision_ms = (time.perf_counter() - t0) * 1e3
+        res.fruitless_xyz = self.fruitless.targets_xyz()
         return res
 
     def _plan(self, map_array, tip_xyz, excluded_targets, misses_before_contact: int = 0) -> PlanResult:
@@ -310,6 +332,16 @@ class TouchPlanner:
             sl = tuple(slice(None, None, s) for _ in range(dim))
             lattice = type(lattice)(tuple(a[::s] for a in lattice.axes), lattice.mean_m[sl],
                                     lattice.variance_m2[sl], lattice.plane_z_m)
+        self.fruitless.note_map(lattice, self.visited)
+        res = self._decide(lattice, cands, tip, excluded_targets, misses_before_contact)
+        if res.ok:
+            res.target_var_m2 = self.fruitless.aimed(len(self.visited) - 1, res.target_xyz, lattice)
+        return res
+
+    def _decide(self, lattice, cands, tip, excluded_targets, misses_before_contact: int) -> PlanResult:
+        """The decision on a parsed map: a search for a lost object or its support, or the ordinary one."""
+        p = self.params
+        dim = lattice.dim
         q = float(p["search_quantile"])
         min_z = self._min_tip_z_m(dim)
         k = int(p["search_after_misses"])
@@ -406,7 +438,7 @@ class TouchPlanner:
         for k in (SHAFT_REASON, "facing down"):
             finger_only |= why.get(k, False)
         other, _ = _combine({k: v for k, v in why.items() if k not in (SHAFT_REASON, "facing down")},
-                            "already targeted", len(valid))
+                            SOFT_REASONS, len(valid))
         ask = valid & finger_only & ~other
         m = len(valid)
         out = TiltedEntries(np.full((m, 3), np.nan), np.full((m, 3), np.nan), np.full(m, np.nan))
@@ -538,6 +570,8 @@ class TouchPlanner:
             # revisited once already: a third touch there is not made (a flat object's run revisited one
             # target whose path met the object at the same point, a duplicate contact, for 40 touches)
             why["targeted twice already"] = near >= 2
+        if self.fruitless.targets:
+            why[FRUITLESS_REASON] = self.fruitless.near(target, dim)
         if dim == 3:
             why["facing down"] = normal[:, 2] < float(p["min_normal_z"])
             # the shortest approach worth making (TouchGeometry.min_approach_m), and the commander's inset,
@@ -547,8 +581,11 @@ class TouchPlanner:
             why["touched below the lowest tip height"] = probe_z < float(p["min_tip_z_m"])
         # "already targeted" is a preference, not a wall: when only earlier targets are left
         # they are revisited rather than the run stopped with unconfirmed surface in reach
-        revisit = why.get("already targeted", np.zeros(m, bool))
-        hard, excluded = _combine(why, "already targeted", m)
+        revisit = np.zeros(m, bool)
+        for k in SOFT_REASONS:
+            if k in why:
+                revisit |= why[k]
+        hard, excluded = _combine(why, SOFT_REASONS, m)
 
         p_in = float(p["p_inside_max"])
         finger_m = float(p["tip_radius_m"]) + float(p["pocket_gap_m"])
@@ -591,18 +628,24 @@ class TouchPlanner:
             for k in (SHAFT_REASON, "facing down"):
                 if k in why:
                     why[k] = why[k] & ~tilted.ok
-            hard, excluded = _combine(why, "already targeted")
+            hard, excluded = _combine(why, SOFT_REASONS)
         travel_end = pretouch if tilted is None else np.where(tilted.ok[:, None], tilted.entry_xyz, pretouch)
         start = graph.nearest_node(tip)
         # outside the band/shell the tip joins the graph by a straight segment; it is
         # "snapped" when it is inside the margin or that segment is not free
         snapped = not bool(graph.segments_free(tip[None], graph.xyz[start][None])[0])
+        lift = np.zeros((0, 3))  # 3D: where a snapped tip goes first, straight up (_lift_until_free)
+        if snapped and dim == 3:
+            lift_xyz, lift_node = _lift_until_free(graph, tip)
+            if lift_node >= 0:
+                lift, start, snapped = lift_xyz[None], lift_node, False
+        lift_m = float(np.linalg.norm(lift[0] - tip)) if len(lift) else 0.0
         term_node, term_len = graph.attach(travel_end, int(p["attach_reach"]))
         if tilted is not None:  # the insertion and the way back out are part of the touch's travel
             term_len = term_len + np.where(tilted.ok, 2.0 * tilted.insert_m, 0.0)
         _, comp = csg.connected_components(graph.length_m, directed=False)
-        joined = _join_where_the_candidates_are(graph, comp, tip, start, term_node[valid & ~hard & (term_node >= 0)],
-                                                finger_m)
+        joined = _join_where_the_candidates_are(graph, comp, lift[0] if len(lift) else tip, start,
+                                                term_node[valid & ~hard & (term_node >= 0)], finger_m)
         snapped, start = snapped or joined != start, joined
         why["invalid"] = ~valid
         why["no free pre-touch point"] = term_node < 0
@@ -645,6 +688,8 @@ class TouchPlanner:
             base["n_excluded"] = int(excluded.sum())
         base.update(start_snapped=snapped)
         snap_msg = " (tip inside the margin or blocked: snapped to the nearest free node)" if snapped else ""
+        if len(lift):
+            snap_msg += f" (tip inside the margin or blocked: lifted {lift_m:.3f} m straight up first)"
         if revisiting:
             snap_msg += "; every reachable candidate was targeted before: revisiting"
         if not reachable.any():
@@ -662,12 +707,13 @@ class TouchPlanner:
             return PlanResult("all_unreachable", f"no candidate has a finite travel cost{snap_msg}",
                               n_unreachable=int(m - excluded.sum()), **base)
         # expected touch: contact after the standoff, the same back (tactile_common.touch_geometry)
-        time_s = MotionModel.from_params(p).touch_time_s(sol.travel_m, float(p["standoff_m"]))
+        travel_m = sol.travel_m + lift_m
+        time_s = MotionModel.from_params(p).touch_time_s(travel_m, float(p["standoff_m"]))
         if tilted is not None:  # a tilted finger turns twice (there and back) about its tip
             tilt_rad = np.arccos(np.clip(np.nan_to_num(tilted.axis_xyz[:, 2], nan=1.0), -1.0, 1.0))
             time_s = time_s + 2.0 * float(p["tilt_turn_s_per_rad"]) * tilt_rad
         ctx = SelectionContext(xyz=target, variance_m2=cands.variance_m2, cost=sol.cost, time_s=time_s,
-                               reachable=reachable, tip_xyz=tip, travel_m=sol.travel_m,
+                               reachable=reachable, tip_xyz=tip, travel_m=travel_m,
                                approach_m=2.0 * float(p["standoff_m"]))
         rng = np.random.default_rng([self.seed, len(self.visited)])  # the k-th decision's draws: (seed, k)
         scores = score_candidates(p["strategy"], ctx, self.strategy_params, rng)
@@ -676,16 +722,17 @@ class TouchPlanner:
         if p["touch"] == "slide":  # the slide with the most variance removed per second (tactile_planner.slides)
             tip_ok = None if shaft_ok is None else (
                 lambda x, n: shaft_ok(x + geometry.tip_radius_m * n))  # the rod above the sliding tip
-            slide = slides.choose_slide(lattice, target, normal, reachable, sol.travel_m, MotionModel.from_params(p),
+            slide = slides.choose_slide(lattice, target, normal, reachable, travel_m, MotionModel.from_params(p),
                                         float(p["standoff_m"]), slides.SlideParams.from_params(p),
                                         self._min_tip_z_m(lattice.dim), tip_ok)
             if slide.index >= 0:
                 idx, scores = slide.index, slide.scores.max(axis=1)
         nodes = sol.path_nodes(idx)
         via = entry[idx][None] if np.isfinite(entry[idx]).all() else np.zeros((0, 3))  # a pocket's entry point
-        pts = np.vstack([tip[None], graph.xyz[nodes], via, travel_end[idx][None]])
+        pts = np.vstack([lift, graph.xyz[nodes], via, travel_end[idx][None]])
         if bool(p["smooth_path"]):
-            pts = shortcut(graph, pts)
+            pts = shortcut(graph, pts) if len(lift) else shortcut(graph, np.vstack([tip[None], pts]))[1:]
+        pts = np.vstack([tip[None], pts])  # a lift is kept: the graph's field does not see the way up as free
         pts = _dedupe(pts)
         axes = np.zeros((0, 3))
         tilt_msg = ""
@@ -709,11 +756,28 @@ class TouchPlanner:
             f"path {path_length_m(pts):.3f} m, {n_unreach} unreachable, {int(excluded.sum())} excluded{snap_msg}"
             f"{tilt_msg}{extra}",
             index=idx, target_xyz=target[idx], normal_xyz=normal[idx], pretouch_xyz=pretouch[idx],
-            path_xyz=pts, path_axes_xyz=axes, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=sol.travel_m, time_s=time_s,
+            path_xyz=pts, path_axes_xyz=axes, path_length_m=path_length_m(pts), scores=scores, travel_costs=sol.cost, travel_m=travel_m, time_s=time_s,
             n_unreachable=n_unreach, backend_info=info, **base,
             **({} if slide is None or slide.index < 0 else
                dict(slide_direction_xyz=slide.direction_xyz, slide_length_m=slide.length_m)),
         )
+
+
+def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray) -> tuple[np.ndarray, int]:
+    """3D: the lowest point straight above ``tip`` (steps of the smallest lattice spacing) from which a
+    free segment reaches its nearest free node: (that point, the node), or (tip, −1) below the lattice
+    top. Why up: the vertical finger's rod fills the column above its tip, so that way is free whatever
+    the estimate says (a tip the estimate puts inside the object, e.g. in a hole it does not know)."""
+    lat = graph.lattice
+    top = float(lat.axes[2][-1])
+    h = float(np.min(lat.spacing_m))
+    for z in np.arange(float(tip[2]) + h, top + 0.5 * h, h):
+        q = np.array([tip[0], tip[1], z])
+        node = graph.nearest_node(q)
+        if node >= 0 and graph.clearance_m(q[None])[0] >= graph.margin_m and \
+                bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
+            return q, node
+    return np.asarray(tip, dtype=float), -1
 
 
 def _join_where_the_candidates_are(graph: FreeSpaceGraph, comp: np.ndarray, tip: np.ndarray, nearest: int,
@@ -736,13 +800,13 @@ def _join_where_the_candidates_are(graph: FreeSpaceGraph, comp: np.ndarray, tip:
     return nearest
 
 
-def _combine(why: dict, soft: str, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(hard, excluded) over the candidates: any reason but ``soft``, any reason at all."""
+def _combine(why: dict, soft: tuple, m: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(hard, excluded) over the candidates: any reason not in ``soft``, any reason at all."""
     n = m if m is not None else len(next(iter(why.values())))
     hard, excluded = np.zeros(n, bool), np.zeros(n, bool)
     for k, mask in why.items():
         excluded |= mask
-        if k != soft:
+        if k not in soft:
             hard |= mask
     return hard, excluded
 
