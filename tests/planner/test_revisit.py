@@ -83,7 +83,7 @@ def test_a_fresh_planner_told_the_history_decides_as_the_one_that_lived_through_
     restarted mid-run and given that history makes the same touch sequence."""
     maps = [sphere_map(96, 2, seed=s) for s in (1, 2, 3, 4, 5)]
     tip = np.array([0.33, 0.0, 0.06])
-    params = {"mode": "2d", "strategy": strategy, "revisit_radius_m": 0.005}
+    params = {"mode": "2d", "strategy": strategy, "revisit_radius_m": 0.005, "fruitless_radius_m": 0.02}
     lived = TouchPlanner.from_params(params, seed=7)
     answers = [lived.plan(m, tip) for m in maps]
     targets = [a.target_xyz for a in answers]

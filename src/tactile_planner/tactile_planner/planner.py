@@ -131,9 +131,10 @@ PARAMETERS: dict[str, tuple[Any, str]] = {
                             "there and back; the commander's plans for the Panda: 4.8–8 s/rad over 30–75°)", {"ge": 0.0}),
     "exclude_radius_m": (0.02, "skip candidates within this distance of targets reported unreachable", {"ge": 0.0}),
     "revisit_radius_m": (0.005, "skip candidates within this distance of a target already chosen (0 = off)", {"ge": 0.0}),
-    "fruitless_radius_m": (0.02, "set aside candidates within this distance of the target of a touch after which the "
+    "fruitless_radius_m": (0.0, "set aside candidates within this distance of the target of a touch after which the "
                            "map's variance there did not drop (the finger sensed elsewhere: tactile_planner.fruitless; "
-                           "revisited only when nothing else is left; 0 = off)", {"ge": 0.0}),
+                           "revisited only when nothing else is left; 0 = off, the default: measured no better, "
+                           "docs/benchmarks.md)", {"ge": 0.0}),
     "fruitless_var_ratio": (0.9, "a touch is fruitless when the variance at its target is still at least this "
                             "fraction of what it was when it was chosen", {"gt": 0.0}),
     "min_normal_z": (-0.2, "3D: skip candidates whose outward normal points further down (a vertical "
