@@ -399,8 +399,9 @@ class ScriptedArm:
         hit = self.results[0] == TaskResult.CONTACT
         return self._verb("approach", 0.02, contact_xyz=[0.45, 0.2, 0.06] if hit else None)
 
-    def slide(self, direction, length, servo):
+    def slide(self, direction, length, servo, normal_xyz=None):
         self.slide_args = (np.asarray(direction), length, servo)
+        self.slide_normal = None if normal_xyz is None else np.asarray(normal_xyz)
         last = FrameContact(9.5, ContactSense(np.array([0.46, 0.25, 0.06]), np.array([-1.0, 0, 0]), 0.15))
         return self._verb("slide", 0.1, extra=dict(stop="length", slid_m=0.1, contacts=20, last_contact=last))
 
@@ -442,6 +443,7 @@ def test_slide_touch_approaches_deeper_slides_backs_off_and_reports_the_stream()
     assert arm.depth == 0.07  # standoff + the servo's approach depth, not a poke's
     np.testing.assert_allclose(arm.calls[1][1], [0.47, 0.2, 0.06])  # validated at the slide's approach depth
     assert arm.slide_args[1] == 0.1
+    np.testing.assert_allclose(arm.slide_normal, [-1.0, 0.0, 0.0])  # the approach's, reversed (rim contacts)
     np.testing.assert_allclose(arm.back_off_args[0], [0.46, 0.25, 0.06])  # off the slide's last contact
     r = done[0]
     assert (r.outcome, r.first_observation_stamp_ns, r.observation_stamp_ns) == ("contact", 42, 9_500_000_000)

@@ -80,6 +80,30 @@ def test_lost_contact_searches_along_the_last_normal_then_stops():
     assert servo.step(tip, None).stop is SlideStop.LOST  # stays stopped
 
 
+def test_a_slide_whose_contacts_have_no_normal_servos_on_the_given_one():
+    """Contacts on the finger's rim carry no normal (NaN): with the approach's normal given, the servo
+    slides the wall with it (the same path as with sensed normals); without, it ends at once."""
+    cfg = SlideServoConfig(gain_m_per_n=1.0 / K_N_PER_M * 0.5)
+    tip = np.array([0.5 - R_TIP + 0.00002, 0.0, 0.06])
+
+    def rim(t):
+        c = wall_contact(t)
+        return None if c is None else ContactSense(c.point_xyz, np.full(3, np.nan), c.force_n)
+
+    no_normal = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.05, *BOX)
+    assert run(no_normal, tip, rim)[0] is SlideStop.LOST and no_normal.slid_m == 0.0
+    given = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.05, *BOX, normal_xyz=np.array([-1.0, 0.0, 0.0]))
+    stop, tips, forces = run(given, tip, rim)
+    sensed = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.05, *BOX)
+    _, tips_sensed, _ = run(sensed, tip, wall_contact)
+    assert stop is SlideStop.LENGTH and given.slid_m == pytest.approx(0.05)
+    np.testing.assert_allclose(tips, tips_sensed, atol=1e-12)
+    # a sensed normal replaces the given one
+    turned = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.05, *BOX, normal_xyz=np.array([0.0, 0.0, 1.0]))
+    turned.step(tip, wall_contact(tip))
+    np.testing.assert_allclose(turned.normal, [-1.0, 0.0, 0.0])
+
+
 def test_force_above_the_band_stops_at_once():
     cfg = SlideServoConfig()
     servo = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 1.0, *BOX)

@@ -72,12 +72,14 @@ class SimulatedFinger:
                    servo, box)
 
     def slide(self, approach: ApproachResult, direction_xyz: np.ndarray, length_m: float,
-              touch_index: int) -> tuple[SlideResult, np.ndarray]:
+              touch_index: int, normal_xyz: Optional[np.ndarray] = None) -> tuple[SlideResult, np.ndarray]:
         """Slide on from an approach's contact (the servo of :mod:`tactile_driver.slide_servo`), then
-        back off ``back_off_m`` from the last contact; returns (the slide, the tip after backing off)."""
+        back off ``back_off_m`` from the last contact; returns (the slide, the tip after backing off).
+        ``normal_xyz``: the normal to servo on until a contact has one (the approach's, reversed)."""
         rng = np.random.default_rng([self.seed, touch_index, 2])
         box = self.box_m if self.box_m is not None else np.array([[-np.inf] * 3, [np.inf] * 3])
-        servo = SlideServo(self.servo, direction_xyz, length_m, box[0], box[1], planar=self.obj.dim == 2)
+        servo = SlideServo(self.servo, direction_xyz, length_m, box[0], box[1], planar=self.obj.dim == 2,
+                           normal_xyz=normal_xyz)
         thinner = ContactThinner(self.servo.thin_distance_m, self.servo.thin_angle_rad)
         result = simulate_slide(self.obj, self.model, self.detector, servo, thinner, approach.tip_xyz_at_stop,
                                 rng=rng)

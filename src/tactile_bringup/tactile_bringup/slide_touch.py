@@ -10,8 +10,9 @@ World frame, metres, seconds. With touch ``slide`` the loop runs, for a plan
   ``max_depth_m``: a slide's first contact is worth a longer search); no
   contact: a free-space observation, and the finger stays at the probe end
   (it is in free space: nothing to retract from);
-- a contact: the slide (:meth:`SimulatedFinger.slide`), then the back-off
-  from its last contact.
+- a contact: the slide (:meth:`SimulatedFinger.slide`; after an approach, on
+  the plan's normal until a contact has one), then the back-off from its last
+  contact.
 
 Travel = path + approach + slide (tip path) + back-off. Time
 (:meth:`MotionModel.slide_time_s`): path at tip speed, approach and back-off
@@ -69,7 +70,7 @@ def slide_touch(finger, motion: MotionModel, plan, path_xyz: np.ndarray, hit, to
         time_s = motion.slide_time_s(path_m, result.travel_m, 0.0, 0.0)
         return SlideTouch(result, None, np.asarray(result.tip_xyz_at_stop, dtype=float),
                           path_m + result.travel_m, float(time_s), None)
-    slide, tip = finger.slide(result, direction, length, touch_index)
+    slide, tip = finger.slide(result, direction, length, touch_index, normal_xyz=plan.normal_xyz)
     back_m = float(np.linalg.norm(tip - slide.tip_path_xyz[-1]))
     time_s = motion.slide_time_s(path_m, result.travel_m, slide.duration_s * motion.slide_speed_mps, back_m)
     lead_m = path_m + result.travel_m

@@ -281,9 +281,11 @@ class ArmCommander:
         self.back_off_xyz = target
         return self._start("back_off", target[None], self.cfg.approach_speed_mps, self.cfg.approach_step_m)
 
-    def slide(self, direction_xyz: np.ndarray, length_m: float, servo: SlideServoConfig) -> bool:
+    def slide(self, direction_xyz: np.ndarray, length_m: float, servo: SlideServoConfig,
+              normal_xyz: Optional[np.ndarray] = None) -> bool:
         """Slide along the surface from where the tip is (after an approach's contact), at most
-        ``length_m`` in ``direction_xyz`` (projected on the sensed tangent), by the servo's rules.
+        ``length_m`` in ``direction_xyz`` (projected on the sensed tangent), by the servo's rules;
+        ``normal_xyz``: the normal to servo on until a contact has one (the approach's, reversed).
 
         Ends SUCCEEDED when a stop rule of the servo ends it (``last_task.extra``: ``stop``,
         ``slid_m``, ``contacts``, ``last_contact`` (a FrameContact or None), ``tip_path``), ABORTED
@@ -300,7 +302,8 @@ class ArmCommander:
         now = self.now_s()
         try:
             loop = SlideLoop(servo, direction_xyz, length_m, self.box.lower_xyz, self.box.upper_xyz, now,
-                             planar=self.cfg.planar, max_contact_age_s=self.cfg.slide_max_contact_age_s)
+                             planar=self.cfg.planar, max_contact_age_s=self.cfg.slide_max_contact_age_s,
+                             normal_xyz=normal_xyz)
         except ValueError as exc:
             return self._reject("slide", str(exc))
         q = np.array(self.q, dtype=float)

@@ -80,14 +80,14 @@ class SlideLoop:
 
     def __init__(self, config: SlideServoConfig, direction_xyz: np.ndarray, length_m: float,
                  box_min_xyz: np.ndarray, box_max_xyz: np.ndarray, start_s: float, planar: bool = False,
-                 max_contact_age_s: float = 0.25) -> None:
+                 max_contact_age_s: float = 0.25, normal_xyz: Optional[np.ndarray] = None) -> None:
         if not max_contact_age_s > 0:
             raise ValueError(f"max_contact_age_s = {max_contact_age_s}: must be > 0")
         cfg = config.validate()
         # The tick limit guards against no progress: an arm that lags its targets needs more ticks.
         max_ticks = int(np.ceil(6.0 * 3.0 * length_m / cfg.step_m)) + 10 * cfg.lost_ticks
         self.servo = SlideServo(cfg, direction_xyz, length_m, box_min_xyz, box_max_xyz, planar=planar,
-                                max_ticks=max_ticks)
+                                max_ticks=max_ticks, normal_xyz=normal_xyz)
         self.config = cfg
         self.length_m = float(length_m)
         self.progress_m = 0.0  # the measured advance along the slide (module docstring)

@@ -16,6 +16,12 @@ normal force F_k; None without contact) and returns the next tip target:
   moves ``max_correction_m`` along −n (the last sensed normal) to regain it
   (a convex corner: the round tip wraps around the vertex).
 
+A contact without a normal (the finger's rim: :mod:`tactile_driver.contact`)
+keeps the last one; before the first normal is sensed the servo uses the one
+it is given (``normal_xyz``: the guarded approach's direction reversed), so a
+slide whose first contact is on the rim (a lip facing down) follows it instead
+of ending at once.
+
 The slide ends (:class:`SlideStop`) when the slid length (the sum of the
 tangent steps) reaches the planned length, when the contact is weak or lost
 for ``lost_ticks`` ticks in a row (an edge, a corner it cannot wrap), when the
@@ -138,7 +144,9 @@ class SlideServo:
 
     def __init__(self, config: SlideServoConfig, direction_xyz: np.ndarray, length_m: float,
                  box_min_xyz: np.ndarray, box_max_xyz: np.ndarray, planar: bool = False,
-                 max_ticks: Optional[int] = None) -> None:
+                 max_ticks: Optional[int] = None, normal_xyz: Optional[np.ndarray] = None) -> None:
+        """``normal_xyz``: the outward normal to servo on until one is sensed (None: the slide ends
+        without one; module docstring)."""
         self.config = config.validate()
         self.planar = bool(planar)
         d = self._flat(np.asarray(direction_xyz, dtype=float).reshape(3))
@@ -154,7 +162,9 @@ class SlideServo:
             raise ValueError(f"slide box {self.box_min.tolist()} .. {self.box_max.tolist()}: max must exceed min")
         self.length_m = float(length_m)
         self.tangent = t
-        self.normal: Optional[np.ndarray] = None  # last sensed outward normal
+        # last sensed outward normal (or the given one, until a contact has one)
+        self.normal: Optional[np.ndarray] = None if normal_xyz is None else \
+            _unit(self._flat(np.asarray(normal_xyz, dtype=float).reshape(3)))
         self.slid_m = 0.0
         self.ticks = 0
         self.weak_ticks = 0

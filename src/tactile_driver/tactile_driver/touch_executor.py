@@ -140,7 +140,7 @@ class TouchExecutor:
             if result == TaskResult.ABORTED and task.contact is not None and not arm.estop.engaged:
                 if slide:  # the path met the object: slide on from that contact
                     self._reason = f"path: {task.reason}"
-                    return self._start_slide(task.contact_stamp_ns)
+                    return self._start_slide(task.contact_stamp_ns, from_approach=False)
                 return self._back_off(task)
             if result != TaskResult.SUCCEEDED:
                 return self._done(OUTCOME_ABORTED, f"path: {task.reason}")
@@ -267,14 +267,16 @@ class TouchExecutor:
             return self._done(OUTCOME_ABORTED, f"approach: {self.arm.last_task.reason}")
         self._state = "approach"
 
-    def _start_slide(self, contact_stamp_ns: int, contact=None) -> None:
-        """The approach (or the path) met the surface: slide from here."""
+    def _start_slide(self, contact_stamp_ns: int, contact=None, from_approach: bool = True) -> None:
+        """The approach (or the path) met the surface: slide from here (after an approach, on its
+        reversed direction until the driver senses a normal: a contact on the finger's rim has none)."""
         task = self.arm.last_task
         self._first_obs_ns = int(contact_stamp_ns)
         record = contact if contact is not None else task.contact
         self._onset_xyz = fields.xyz(np.atleast_1d(record))[0] if record is not None else self.arm.tip_xyz
         self._outcome, self._obs_stamp_ns = OUTCOME_CONTACT, self._first_obs_ns
-        if not self.arm.slide(self._req.slide_direction_xyz, self._req.slide_length_m, self.slide_servo):
+        normal = -np.asarray(self._req.approach_dir, dtype=float) if from_approach else None
+        if not self.arm.slide(self._req.slide_direction_xyz, self._req.slide_length_m, self.slide_servo, normal):
             return self._done(OUTCOME_ABORTED, f"slide: {self.arm.last_task.reason}")
         self._state = "slide"
 
