@@ -313,6 +313,7 @@ class ExplorationCycle:
         except ValueError as exc:
             self.log.warning(f"planner answer {answer.request_id}: {exc}; not handed back")
             self._fruitless = self._last_target_var_m2 = None
+
     def _enter(self, phase: Phase) -> None:
         self.phase = phase
         self._t_phase = self._clock_s()
