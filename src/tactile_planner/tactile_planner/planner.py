@@ -772,11 +772,11 @@ def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray) -> tuple[np.ndarray
     lat = graph.lattice
     top = float(lat.axes[2][-1])
     h = float(np.min(lat.spacing_m))
-    for z in np.arange(float(tip[2]) + h, top + 0.5 * h, h):
-        q = np.array([tip[0], tip[1], z])
+    z = np.arange(float(tip[2]) + h, top + 0.5 * h, h)
+    column = np.column_stack([np.full_like(z, tip[0]), np.full_like(z, tip[1]), z])
+    for q in column[graph.clearance_m(column) >= graph.margin_m]:  # the clearance of the column in one pass
         node = graph.nearest_node(q)
-        if node >= 0 and graph.clearance_m(q[None])[0] >= graph.margin_m and \
-                bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
+        if node >= 0 and bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
             return q, node
     return np.asarray(tip, dtype=float), -1
 
