@@ -148,3 +148,19 @@ def test_touches_aborted_again_and_again_end_the_run_after_the_explorers_retries
     followed = sum(np.linalg.norm(np.diff(np.vstack([a, b]), axis=0)) for a, b in zip(pokes, ends))
     assert report["summary"]["travel_m"] >= followed - 1e-9 > 0
     assert report["summary"]["time_s"] > 0
+
+
+def test_an_offline_slide_down_a_wall_stops_at_the_commanders_floor():
+    """The offline slide keeps the tip centre inside the commander's safety box, floor above the table
+    included (table_z + table_margin + tip radius), as the graph's slide does: a slide down the box's
+    side wall ends on the box rule there, not on the table or below it."""
+    exp = Experiment(mode="3d", object_name="box", strategy="proposed", touches=1, seed=0, touch="slide")
+    finger = ExplorationLoop(exp).finger
+    arm = exp.arm_params
+    floor_m = arm["table_z_m"] + arm["table_margin_m"] + arm["tip_radius_m"]
+    approach = finger.approach(np.array([0.40, 0.0, 0.04]), np.array([1.0, 0.0, 0.0]), 0, max_travel_m=0.08)
+    assert approach.contact  # the wall at x = 0.46
+    result, _ = finger.slide(approach, np.array([0.0, 0.0, -1.0]), 0.10, 0, normal_xyz=np.array([-1.0, 0.0, 0.0]))
+    assert result.stop.value == "box"
+    assert result.tip_path_xyz[:, 2].min() >= floor_m - 1e-9
+    assert result.tip_path_xyz[:, 2].min() < floor_m + 0.002  # it went down to the floor

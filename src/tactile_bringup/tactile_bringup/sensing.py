@@ -14,10 +14,12 @@ from typing import Any, Mapping, Optional
 import numpy as np
 
 from tactile_common.touch_geometry import TouchGeometry
+from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.taxels import TaxelLayout, load_layout, resolve_layout_file
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
+from tactile_driver.safety import WorkspaceBox
 from tactile_driver.slide_servo import ContactThinner, SlideServo, SlideServoConfig
 from tactile_sim.slide import SlideResult, simulate_slide
 
@@ -48,7 +50,7 @@ class SimulatedFinger:
     path_step_m: float = 0.0005  # tip travel per sensor frame on a free-space path (tip speed / frame rate)
     back_off_m: float = 0.02  # tip centre to a contact after backing off (tip radius + standoff)
     servo: SlideServoConfig = SlideServoConfig()  # slides: the commander's servo parameters ('slide.' prefix)
-    box_m: Optional[np.ndarray] = None  # slides: (2, 3) box the tip centre stays in (the estimator's workspace)
+    box_m: Optional[np.ndarray] = None  # slides: (2, 3) box the tip centre stays in (the commander's safety box)
 
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
@@ -66,8 +68,11 @@ class SimulatedFinger:
         back_off_m = geometry.pretouch_offset_m
         servo = SlideServoConfig.from_params({**experiment.arm_params, "slide.slide_speed_mps":
                                               planner.get("slide_speed_mps", 0.05)}, "slide.")
-        g = experiment.gpis_params
-        box = np.array([g["workspace.min_m"], g["workspace.max_m"]], dtype=float)
+        # The commander's safety box, floor above the table included: the graph's slides stop there too.
+        arm = _dataclass_from(CommanderConfig, experiment.arm_params)
+        safety = WorkspaceBox.from_params(arm.box_x_m, arm.box_y_m, arm.box_z_m, arm.table_z_m, arm.table_margin_m,
+                                          arm.tip_radius_m)
+        box = np.array([safety.lower_xyz, safety.upper_xyz], dtype=float)
         return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m,
                    servo, box)
 
