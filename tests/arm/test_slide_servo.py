@@ -80,6 +80,29 @@ def test_lost_contact_searches_along_the_last_normal_then_stops():
     assert servo.step(tip, None).stop is SlideStop.LOST  # stays stopped
 
 
+def test_a_weak_contact_is_pressed_in_at_the_full_correction_rate():
+    """A contact below the band (a grazing touch: a round tip's spring force grows with the square of
+    its depth, F = c·δ², so the proportional correction is tiny there) is pressed in by
+    max_correction_m per tick, without a tangent step, until the force is back in the band."""
+    cfg = SlideServoConfig()
+    c_n_per_m2 = 6.3e5  # a 1 cm sphere on the 2e7 Pa/m skin: F = k·π·r·δ²
+    servo = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.01, *BOX, planar=True)
+
+    def hertz_wall(tip, x_wall=0.5):
+        pen = tip[0] + R_TIP - x_wall
+        return None if pen <= 0 else ContactSense(np.array([x_wall, tip[1], tip[2]]), np.array([-1.0, 0.0, 0.0]),
+                                                   c_n_per_m2 * pen**2)
+
+    tip = np.array([0.5 - R_TIP + 0.00001, 0.0, 0.06])  # 10 µm deep: 6e-5 N
+    stop, tips, forces = run(servo, tip, hertz_wall)
+    assert stop is SlideStop.LENGTH
+    weak = int(np.sum(forces < cfg.min_force_n))
+    depth_min_m = np.sqrt(cfg.min_force_n / c_n_per_m2)  # 0.31 mm
+    assert weak == int(np.ceil((depth_min_m - 0.00001) / cfg.max_correction_m))  # one tick (the proportional law took 12)
+    assert np.allclose(np.diff(tips[:weak + 1], axis=0), [cfg.max_correction_m, 0.0, 0.0])  # in, no step
+    assert forces[weak:].max() < cfg.max_force_n
+
+
 def test_a_slide_whose_contacts_have_no_normal_servos_on_the_given_one():
     """Contacts on the finger's rim carry no normal (NaN): with the approach's normal given, the servo
     slides the wall with it (the same path as with sensed normals); without, it ends at once."""

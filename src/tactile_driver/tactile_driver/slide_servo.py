@@ -9,7 +9,10 @@ normal force F_k; None without contact) and returns the next tip target:
   direction, projected on the sensed tangent plane tick after tick (in 2D the
   z components are dropped), so the finger follows the surface as it turns;
 - normal correction ``Δ_k = clip(gain_m_per_n · (F* − F_k), ±max_correction_m)``
-  into the surface (along −n_k); F* = ``target_force_n``;
+  into the surface (along −n_k); F* = ``target_force_n``; below the band
+  (F_k < ``min_force_n``) ``Δ_k = max_correction_m``: a round tip's force
+  grows with the square of its depth, so near a grazing touch the
+  proportional law would creep in by micrometres per tick;
 - step ``h = slide_speed_mps / control_rate_hz`` along t_k, taken only while
   ``F_k ≥ min_force_n`` (a weak or lost contact is regained first);
 - target ``p_{k+1} = p_k + h·t_k − Δ_k·n_k``; without contact the target
@@ -223,7 +226,7 @@ class SlideServo:
             t = _unit(np.cross([0.0, 0.0, 1.0], n))
             t = t if t is not None else _unit(np.cross([1.0, 0.0, 0.0], n))
         self.tangent = t
-        if contact is None:
+        if weak:  # regain the band at full rate (the spring force grows with the square of the depth)
             correction = cfg.max_correction_m
         else:
             correction = float(np.clip(cfg.gain_m_per_n * (cfg.target_force_n - force),
