@@ -153,6 +153,31 @@ def test_lap_closes_when_the_contact_returns_to_its_start():
     assert stops[:-1] == [None] * (len(seq) - 1) and stops[-1] is SlideStop.LAP
 
 
+def test_a_slide_that_settles_below_its_first_contact_ends_after_one_lap_there():
+    """A 3D slide on a vertical cylinder (radius R) whose first contact is 10 mm above the height it
+    settles at, then circles there: the first-contact rule never fires (the circle stays 10 mm below
+    it); the tip comes back to where it was one circumference before, and the slide ends there."""
+    cfg = SlideServoConfig()
+    R, z0, z1, drop_m = 0.03, 0.074, 0.064, 0.01
+    servo = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.6, *BOX)
+    h = cfg.step_m
+    for _ in range(2000):  # the tip is scripted: down first, then round the circle at z1 (arc length = slid)
+        s_m = servo.slid_m
+        if s_m < drop_m:
+            tip = np.array([0.5 + R + R_TIP, 0.0, z0 - s_m])
+            a = 0.0
+        else:
+            a = (s_m - drop_m) / (R + R_TIP)
+            tip = np.array([0.5 + (R + R_TIP) * np.cos(a), (R + R_TIP) * np.sin(a), z1])
+        n = np.array([np.cos(a), np.sin(a), 0.0])
+        step = servo.step(tip, ContactSense(tip - R_TIP * n, n, cfg.target_force_n))
+        if step.stop is not None:
+            break
+    assert step.stop is SlideStop.LAP
+    lap_m = 2.0 * np.pi * (R + R_TIP)  # the tip's circle
+    assert drop_m + lap_m - cfg.lap_radius_m - h < servo.slid_m < drop_m + lap_m
+
+
 def test_thinner_keeps_contacts_by_distance_and_turn():
     th = ContactThinner(0.0049, np.radians(10))
     n0 = np.array([-1.0, 0, 0])

@@ -32,7 +32,11 @@ force exceeds ``max_force_n`` (the band's top: the finger is jammed, e.g. in
 a concave corner narrower than the tip), when the next target would leave
 the workspace box, when the contact returns within ``lap_radius_m`` of the
 slide's first firm contact after sliding 4× that radius or more (a closed
-contour has been sensed all round; 0 = off), or after ``max_ticks``. The e-stop and the joint-state
+contour has been sensed all round; 0 = off), when the tip comes back within
+``lap_radius_m`` of where it was 4× that radius of slide or more before (it
+senses a band it has sensed: a 3D slide that settled at another height than
+its first contact laps there without ever meeting that contact again), or
+after ``max_ticks``. The e-stop and the joint-state
 watchdog stay the commander's (they stop every motion, a slide included).
 
 :class:`ContactThinner` keeps the contacts worth publishing from the per-tick
@@ -175,6 +179,9 @@ class SlideServo:
             int(np.ceil(3.0 * self.length_m / self.config.step_m)) + 10 * self.config.lost_ticks
         self.stopped: Optional[SlideStop] = None
         self.first_point: Optional[np.ndarray] = None  # first firm contact (the lap rule)
+        # the tip every lap_radius_m / 2 of slide, with the slid length there (the lap rule)
+        self._trail_xyz = np.empty((0, 3))
+        self._trail_s = np.empty(0)
 
     @property
     def duration_s(self) -> float:
@@ -221,6 +228,8 @@ class SlideServo:
             elif self.slid_m >= 4.0 * cfg.lap_radius_m and \
                     float(np.linalg.norm(self._flat(p - self.first_point))) < cfg.lap_radius_m:
                 return self._stop(SlideStop.LAP)
+            if self._tip_revisits(tip):
+                return self._stop(SlideStop.LAP)
         t = _unit(self._flat(self.tangent - float(self.tangent @ n) * n))
         if t is None:  # the direction is along the normal: any tangent (z × n, else x × n)
             t = _unit(np.cross([0.0, 0.0, 1.0], n))
@@ -240,6 +249,18 @@ class SlideServo:
             self.stopped = SlideStop.LENGTH
             return SlideStep(target, SlideStop.LENGTH, step, self.tangent.copy())
         return SlideStep(target, None, step, self.tangent.copy())
+
+    def _tip_revisits(self, tip: np.ndarray) -> bool:
+        """The tip is within r = lap_radius_m of where it was ≥ 4 r of slide ago (module docstring);
+        records it every r / 2 of slide."""
+        r = self.config.lap_radius_m
+        if self._trail_s.size == 0 or self.slid_m - self._trail_s[-1] >= 0.5 * r:
+            self._trail_xyz = np.vstack([self._trail_xyz, tip[None]])
+            self._trail_s = np.append(self._trail_s, self.slid_m)
+        old = self._trail_s <= self.slid_m - 4.0 * r
+        if not old.any():
+            return False
+        return bool(np.min(np.sum((self._trail_xyz[old] - tip) ** 2, axis=1)) < r * r)
 
     def _stop(self, why: SlideStop) -> SlideStep:
         self.stopped = why
