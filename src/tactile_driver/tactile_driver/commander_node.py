@@ -58,7 +58,8 @@ SLIDE_PARAMS = {
     "slide.thin_distance_m": (_S.thin_distance_m, "slide: publish a contact every this much contact travel",
                               {"gt": 0.0}),
     "slide.thin_angle_rad": (_S.thin_angle_rad, "slide: ...or when the normal turned by this much", {"gt": 0.0}),
-    "slide.lap_radius_m": (_S.lap_radius_m, "slide: back within this of the first contact: a lap, stop (0 = off)",
+    "slide.lap_radius_m": (_S.lap_radius_m,
+                           "slide: back within this of the first contact, or the tip of its own path: a lap, stop (0 = off)",
                            {"ge": 0.0}),
     "slide.approach_depth_m": (_S.approach_depth_m, "slide: the guarded approach's depth beyond the estimated "
                                "surface before a slide", {"gt": 0.0}),
