@@ -98,7 +98,8 @@ def test_a_weak_contact_is_pressed_in_at_the_full_correction_rate():
     assert stop is SlideStop.LENGTH
     weak = int(np.sum(forces < cfg.min_force_n))
     depth_min_m = np.sqrt(cfg.min_force_n / c_n_per_m2)  # 0.31 mm
-    assert weak == int(np.ceil((depth_min_m - 0.00001) / cfg.max_correction_m))  # one tick (the proportional law took 12)
+    # one tick (the proportional law took 12)
+    assert weak == int(np.ceil((depth_min_m - 0.00001) / cfg.max_correction_m))
     assert np.allclose(np.diff(tips[:weak + 1], axis=0), [cfg.max_correction_m, 0.0, 0.0])  # in, no step
     assert forces[weak:].max() < cfg.max_force_n
 

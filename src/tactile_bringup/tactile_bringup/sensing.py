@@ -16,10 +16,10 @@ import numpy as np
 from tactile_common.touch_geometry import TouchGeometry
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
+from tactile_driver.safety import WorkspaceBox
 from tactile_driver.taxels import TaxelLayout, load_layout, resolve_layout_file
 from tactile_sim.sensor_model import SensorModel, SensorModelConfig, world_sdf
 from tactile_sim.touch import ApproachResult, simulate_approach
-from tactile_driver.safety import WorkspaceBox
 from tactile_driver.slide_servo import ContactThinner, SlideServo, SlideServoConfig
 from tactile_sim.slide import SlideResult, simulate_slide
 
