@@ -69,9 +69,7 @@ class SimulatedFinger:
         servo = SlideServoConfig.from_params({**experiment.arm_params, "slide.slide_speed_mps":
                                               planner.get("slide_speed_mps", 0.05)}, "slide.")
         # The commander's safety box, floor above the table included: the graph's slides stop there too.
-        arm = _dataclass_from(CommanderConfig, experiment.arm_params)
-        safety = WorkspaceBox.from_params(arm.box_x_m, arm.box_y_m, arm.box_z_m, arm.table_z_m, arm.table_margin_m,
-                                          arm.tip_radius_m)
+        safety = WorkspaceBox.of_commander(_dataclass_from(CommanderConfig, experiment.arm_params))
         box = np.array([safety.lower_xyz, safety.upper_xyz], dtype=float)
         return cls(obj, model, detector, step_m, max_travel_m, int(experiment.seed), path_step_m, back_off_m,
                    servo, box)

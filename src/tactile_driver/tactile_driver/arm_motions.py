@@ -56,8 +56,7 @@ class ArmMotions:
     def __init__(self, config: Any) -> None:
         c = self.cfg = config
         self.model = ArmModel(c.urdf_path, list(c.joint_names), c.flange_frame, c.tip_offset_m)
-        self.box = WorkspaceBox.from_params(c.box_x_m, c.box_y_m, c.box_z_m, c.table_z_m, c.table_margin_m,
-                                            c.tip_radius_m)
+        self.box = WorkspaceBox.of_commander(c)
         self.limits = MotionLimits.for_model(self.model, list(c.max_joint_velocity_rad_s),
                                              list(c.max_joint_acceleration_rad_s2), c.tip_speed_mps)
         self.ik = IKSettings(tol_m=c.ik_tol_m, max_tilt_rad=c.max_tilt_rad)

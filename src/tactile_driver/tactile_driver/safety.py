@@ -10,7 +10,7 @@ from above instead of refused because a full-depth approach would end in it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 
@@ -58,6 +58,13 @@ class WorkspaceBox:
         if lower[2] >= upper[2]:
             raise ValueError(f"safety box floor {lower[2]:.3f} m is not below its top {upper[2]:.3f} m")
         return cls(lower, upper)
+
+    @classmethod
+    def of_commander(cls, config: Any) -> "WorkspaceBox":
+        """The arm commander's box: from a configuration with its ``box_x_m``, ``box_y_m``, ``box_z_m``,
+        ``table_z_m``, ``table_margin_m`` and ``tip_radius_m`` (a ``CommanderConfig``)."""
+        c = config
+        return cls.from_params(c.box_x_m, c.box_y_m, c.box_z_m, c.table_z_m, c.table_margin_m, c.tip_radius_m)
 
     def inside(self, points_xyz: np.ndarray, slack_m: float = 0.0) -> np.ndarray:
         """(N,) bool: point inside the box grown by ``slack_m`` on every face (NaN is outside)."""
