@@ -164,3 +164,23 @@ def test_an_offline_slide_down_a_wall_stops_at_the_commanders_floor():
     assert result.stop.value == "box"
     assert result.tip_path_xyz[:, 2].min() >= floor_m - 1e-9
     assert result.tip_path_xyz[:, 2].min() < floor_m + 0.002  # it went down to the floor
+
+
+def test_an_offline_approach_ends_inside_the_commanders_box_as_the_graphs_does():
+    """An approach heading down past the floor of the commander's safety box is shortened to end
+    APPROACH_BOX_INSET_M inside it (ArmMotions.approach_depth_m): offline the box's wall was found at
+    the tip centre's 12 mm (tip 2 mm into the table's margin) where the graph's approach ended above it
+    without contact."""
+    from tactile_common.touch_geometry import APPROACH_BOX_INSET_M
+
+    exp = Experiment(mode="3d", object_name="box", strategy="proposed", touches=1, seed=0, touch="slide")
+    finger = ExplorationLoop(exp).finger
+    arm = exp.arm_params
+    floor_m = arm["table_z_m"] + arm["table_margin_m"] + arm["tip_radius_m"]
+    d = np.array([1.0, 0.0, -1.0]) / np.sqrt(2.0)  # down and towards the wall at x = 0.46
+    start = np.array([0.46 - 0.01 - 0.012, 0.0, floor_m + 0.008])  # would meet the wall 3 mm below the floor
+    approach = finger.approach(start, d, 0, max_travel_m=0.05)
+    assert not approach.contact
+    z_end = approach.tip_xyz_at_stop[2]  # the approach moves in sensor-frame steps (0.1 mm)
+    assert floor_m <= z_end and z_end == pytest.approx(floor_m + APPROACH_BOX_INSET_M, abs=2e-4)
+    assert approach.travel_m == pytest.approx((0.008 - APPROACH_BOX_INSET_M) * np.sqrt(2.0), abs=3e-4)

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from tactile_common.touch_geometry import TouchGeometry
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M, TouchGeometry
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.safety import WorkspaceBox
@@ -50,7 +50,7 @@ class SimulatedFinger:
     path_step_m: float = 0.0005  # tip travel per sensor frame on a free-space path (tip speed / frame rate)
     back_off_m: float = 0.02  # tip centre to a contact after backing off (tip radius + standoff)
     servo: SlideServoConfig = SlideServoConfig()  # slides: the commander's servo parameters ('slide.' prefix)
-    box_m: Optional[np.ndarray] = None  # slides: (2, 3) box the tip centre stays in (the commander's safety box)
+    box_m: Optional[np.ndarray] = None  # (2, 3) box the tip centre stays in (the commander's safety box): slides, approaches
 
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
@@ -101,6 +101,10 @@ class SimulatedFinger:
         rng = np.random.default_rng([self.seed, touch_index])
         start = np.asarray(start_xyz, dtype=float)
         travel = self.max_travel_m if max_travel_m is None else float(max_travel_m)
+        if self.box_m is not None:  # as the commander: shortened to end inside its box (ArmMotions.approach_depth_m)
+            box = WorkspaceBox(self.box_m[0], self.box_m[1])
+            reach_m = box.reach_m(np.clip(start, box.lower_xyz, box.upper_xyz), direction_xyz)
+            travel = min(travel, max(reach_m - APPROACH_BOX_INSET_M, 0.0))
         result = simulate_approach(self.obj, self.model.layout, self.model, self.detector, start,
                                    direction_xyz, travel, self.step_m, rng=rng)
         # Retract: the finger leaves the object, so the detector's hysteresis releases.
