@@ -170,3 +170,50 @@ def test_a_3d_trace_stops_at_the_lowest_tip_height():
     valid = np.cumprod(ok, axis=1).astype(bool)[0]
     assert valid[:5].all() and not valid.all()
     assert pts[0, valid, 2].min() >= 0.03 and pts[0, np.argmin(valid), 2] < 0.03
+
+
+def _rod_clear_of_sphere(c, radius_m, tip_radius_m, gap_m):
+    """The vertical rod above the tip centre x + r·n clears the sphere (c, R) by ``gap_m`` (analytic)."""
+    def ok(x, n):
+        tip = x + tip_radius_m * n
+        rho = np.hypot(tip[:, 0] - c[0], tip[:, 1] - c[1])
+        top = c[2] + np.sqrt(np.maximum(radius_m ** 2 - rho ** 2, 0.0))  # the sphere's top above the tip
+        return (rho >= radius_m + gap_m) | (tip[:, 2] >= top)
+    return ok
+
+
+def test_a_3d_trace_heading_down_goes_on_straight_down_where_the_estimate_turns_under_the_rod():
+    """Down a sphere from its equator: the surface turns under the rod at cos φ = (R + gap)/(R + r)
+    (φ below the equator); from the last point the rod clears, the path goes straight down to the
+    lowest tip height (a wall the estimate has not seen yet is what the finger would find there)."""
+    m = parse_variance_map(sphere_map(48, 3, radius_m=0.05))[0]
+    c = np.array([0.5, 0.0, 0.06])
+    R, r, gap, h, z_min = 0.05, 0.01, 0.002, 0.002, 0.015
+    ok_fn = _rod_clear_of_sphere(c, R, r, gap)
+    start = c + np.array([R, 0.0, 0.0])
+    pts, _, ok = trace(m, start[None], np.array([[0.0, 0.0, -1.0]]), h, 60, min_z_m=z_min, surface_ok=ok_fn)
+    valid = np.cumprod(ok, axis=1).astype(bool)[0]
+    p = pts[0, valid]
+    assert p[-1, 2] >= z_min and p[-1, 2] < z_min + h + 1e-9  # down to the lowest tip height
+    phi = np.arcsin(np.clip((c[2] - p[:, 2]) / R, -1, 1))  # angle below the equator where on the sphere
+    on_sphere = np.abs(np.linalg.norm(p - c, axis=1) - R) < 5e-4
+    turn = np.flatnonzero(~on_sphere)[0]  # the first point off the sphere: straight down from here
+    phi_turn = np.arccos((R + gap) / (R + r))
+    assert phi[turn - 1] <= phi_turn + 1e-3 and phi[turn - 1] > phi_turn - 2 * h / R
+    np.testing.assert_allclose(p[turn:, :2], np.broadcast_to(p[turn - 1, :2], p[turn:, :2].shape), atol=1e-12)
+    np.testing.assert_allclose(np.diff(p[turn - 1:, 2]), -h, atol=1e-12)
+    # the same path without the rod check follows the sphere under (and is not cut at the turn)
+    free, _, ok_free = trace(m, start[None], np.array([[0.0, 0.0, -1.0]]), h, 60, min_z_m=z_min)
+    assert np.linalg.norm(free[0, turn + 3] - c) == pytest.approx(R, abs=5e-4)
+
+
+def test_a_3d_trace_along_a_band_the_rod_cannot_follow_ends_there():
+    """Horizontal, below the equator, where the rod would enter the sphere: no drop (it is not heading
+    down), the path ends at its start."""
+    m = parse_variance_map(sphere_map(48, 3, radius_m=0.05))[0]
+    c = np.array([0.5, 0.0, 0.06])
+    phi = np.radians(50.0)
+    start = c + 0.05 * np.array([np.cos(phi), 0.0, -np.sin(phi)])
+    _, _, ok = trace(m, start[None], np.array([[0.0, 1.0, 0.0]]), 0.002, 20, min_z_m=0.015,
+                     surface_ok=_rod_clear_of_sphere(c, 0.05, 0.01, 0.002))
+    assert np.cumprod(ok, axis=1).astype(bool)[0].sum() == 1
