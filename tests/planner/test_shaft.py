@@ -143,7 +143,10 @@ def test_approaches_that_would_put_the_rod_into_the_deck_are_excluded_and_others
         assert not under.any(), k
 
 
-def test_a_slide_down_the_deck_side_stops_at_its_edge_instead_of_going_under_it():
+def test_a_slide_down_the_deck_side_goes_straight_down_past_its_edge_instead_of_under_it():
+    """Down the deck's outer wall: where the surface turns under the deck the rod would enter it, so the
+    trace goes on straight down beside the deck (tactile_planner.slides: the finger follows a wall
+    down; on this mushroom the servo's contact ends at the edge) and never under it."""
     lat = mushroom_lattice(64)
     start = np.array([[0.56, 0.0, 0.11]])  # the deck's outer side wall, sliding down it
     down = np.array([[0.0, 0.0, -1.0]])
@@ -155,11 +158,11 @@ def test_a_slide_down_the_deck_side_stops_at_its_edge_instead_of_going_under_it(
                              shaft_clearance_m=0.010)
     rod_clear = lambda x, n: graph.rod_clearance_m(x + 0.01 * n, 0.01) >= 0.007  # noqa: E731
     pts, _, ok = trace(lat, start, down, 0.003, 20, surface_ok=rod_clear)
-    valid = np.cumprod(ok[0]).astype(bool)
-    assert 2 <= valid.sum() < 20  # it slides some way down the wall, then stops
-    # where it stops, the tip centre is still beside the deck, not under it
-    last = pts[0, valid][-1]
-    assert last[0] > 0.555 and last[2] > 0.095
+    p = pts[0, np.cumprod(ok[0]).astype(bool)]
+    assert len(p) == 21 and p[-1, 2] < 0.06  # all the way down
+    assert (p[:, 0] > 0.555).all()  # beside the deck, never under it
+    edge = next(i for i in range(len(p)) if np.all(p[i:, :2] == p[i, :2]))  # from here straight down
+    assert 0.095 < p[edge, 2] < 0.105  # the deck's lower edge (z = 0.10)
 
 
 @pytest.mark.parametrize("d", [0.004, 0.011, 0.023])
