@@ -41,3 +41,13 @@ def test_a_slide_run_stops_once_the_surface_is_known_unless_the_user_says_otherw
     assert Experiment().confidence_max_var_m2 == 0.0
     files = _params(tmp_path, {"explorer": {"ros__parameters": {"confidence_max_var_m2": 0.0}}})
     assert Experiment(touch="slide", user_params_files=files).confidence_max_var_m2 == 0.0
+
+
+def test_a_3d_slide_run_does_not_probe_under_a_floating_estimate_unless_the_user_says_so(tmp_path):
+    """explore_slide.yaml: slides down a wall reach the table, so a 3D slide run has no support probes;
+    3D pokes keep them (explore_3d.yaml), and a --params file still decides."""
+    assert Experiment(mode="3d", touch="slide").node_params("soc_planner")["support_gap_m"] == 0.0
+    assert Experiment(mode="3d", touch="poke").node_params("soc_planner")["support_gap_m"] == pytest.approx(0.03)
+    files = _params(tmp_path, {"soc_planner": {"ros__parameters": {"support_gap_m": 0.02}}})
+    assert Experiment(mode="3d", touch="slide", user_params_files=files).node_params("soc_planner")[
+        "support_gap_m"] == pytest.approx(0.02)
