@@ -203,7 +203,7 @@ def test_a_3d_trace_heading_down_goes_on_straight_down_where_the_estimate_turns_
     np.testing.assert_allclose(p[turn:, :2], np.broadcast_to(p[turn - 1, :2], p[turn:, :2].shape), atol=1e-12)
     np.testing.assert_allclose(np.diff(p[turn - 1:, 2]), -h, atol=1e-12)
     # the same path without the rod check follows the sphere under (and is not cut at the turn)
-    free, _, ok_free = trace(m, start[None], np.array([[0.0, 0.0, -1.0]]), h, 60, min_z_m=z_min)
+    free, _, _ = trace(m, start[None], np.array([[0.0, 0.0, -1.0]]), h, 60, min_z_m=z_min)
     assert np.linalg.norm(free[0, turn + 3] - c) == pytest.approx(R, abs=5e-4)
 
 

@@ -50,7 +50,7 @@ class SimulatedFinger:
     path_step_m: float = 0.0005  # tip travel per sensor frame on a free-space path (tip speed / frame rate)
     back_off_m: float = 0.02  # tip centre to a contact after backing off (tip radius + standoff)
     servo: SlideServoConfig = SlideServoConfig()  # slides: the commander's servo parameters ('slide.' prefix)
-    box_m: Optional[np.ndarray] = None  # (2, 3) box the tip centre stays in (the commander's safety box): slides, approaches
+    box_m: Optional[np.ndarray] = None  # (2, 3) the commander's safety box for the tip centre (slides, approaches)
 
     @classmethod
     def from_params(cls, experiment, obj) -> "SimulatedFinger":
