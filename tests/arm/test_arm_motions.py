@@ -13,7 +13,8 @@ import pinocchio as pin
 import pytest
 from scipy.interpolate import CubicHermiteSpline
 
-from tactile_driver.arm_motions import APPROACH_BOX_INSET_M, ArmMotions, path_point_before, timed_start_ns
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M
+from tactile_driver.arm_motions import ArmMotions, path_point_before, timed_start_ns
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.safety import OutsideWorkspace
 from tactile_driver.trajectory import TrajectoryError, plan_tip_path

@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 import numpy as np
 
-from tactile_common.touch_geometry import APPROACH_BOX_INSET_M, TouchGeometry
+from tactile_common.touch_geometry import TouchGeometry
 from tactile_driver.commander_api import CommanderConfig
 from tactile_driver.contact import ContactConfig, ContactDetector, back_off_target
 from tactile_driver.safety import WorkspaceBox
@@ -103,8 +103,7 @@ class SimulatedFinger:
         travel = self.max_travel_m if max_travel_m is None else float(max_travel_m)
         if self.box_m is not None:  # as the commander: shortened to end inside its box (ArmMotions.approach_depth_m)
             box = WorkspaceBox(self.box_m[0], self.box_m[1])
-            reach_m = box.reach_m(np.clip(start, box.lower_xyz, box.upper_xyz), direction_xyz)
-            travel = min(travel, max(reach_m - APPROACH_BOX_INSET_M, 0.0))
+            travel = max(box.approach_depth_m(np.clip(start, box.lower_xyz, box.upper_xyz), direction_xyz, travel), 0.0)
         result = simulate_approach(self.obj, self.model.layout, self.model, self.detector, start,
                                    direction_xyz, travel, self.step_m, rng=rng)
         # Retract: the finger leaves the object, so the detector's hysteresis releases.

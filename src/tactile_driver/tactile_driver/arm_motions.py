@@ -35,7 +35,6 @@ from typing import Any, Optional
 
 import numpy as np
 
-from tactile_common.touch_geometry import APPROACH_BOX_INSET_M  # a shortened approach ends this far inside
 from tactile_common.wrist import bands_from_flat, wrist_lowest_z_m
 from tactile_driver.ik import IKSettings, tilt_of
 from tactile_driver.kinematics import ArmModel, home_configuration
@@ -157,7 +156,7 @@ class ArmMotions:
         """
         d = np.asarray(direction_xyz, dtype=float)
         d = d / np.linalg.norm(d)
-        depth = min(float(depth_m), self.box.reach_m(self.into_box(start_xyz), d) - APPROACH_BOX_INSET_M)
+        depth = self.box.approach_depth_m(self.into_box(start_xyz), d, depth_m)
         if depth < min_depth_m:
             raise OutsideWorkspace(0, np.asarray(start_xyz, dtype=float) + min_depth_m * d, self.box.lower_xyz,
                                    self.box.upper_xyz)

@@ -3,7 +3,7 @@
 The box is checked on every tip waypoint before anything is sent: a target
 outside is rejected with the offending point, never clamped. A guarded
 approach's depth is a bound, not a target: it is shortened to end inside the
-box (:meth:`WorkspaceBox.reach_m`), so a plate lying on the table is touched
+box (:meth:`WorkspaceBox.approach_depth_m`), so a plate lying on the table is touched
 from above instead of refused because a full-depth approach would end in it.
 """
 
@@ -13,6 +13,8 @@ from dataclasses import dataclass
 from typing import Any, Optional, Sequence
 
 import numpy as np
+
+from tactile_common.touch_geometry import APPROACH_BOX_INSET_M  # a shortened approach ends this far inside
 
 
 class OutsideWorkspace(ValueError):
@@ -81,6 +83,11 @@ class WorkspaceBox:
         with np.errstate(divide="ignore", invalid="ignore"):
             to_face = np.where(d > 0, (self.upper_xyz - p) / d, np.where(d < 0, (self.lower_xyz - p) / d, np.inf))
         return float(np.min(to_face))
+
+    def approach_depth_m(self, start_xyz: np.ndarray, direction_xyz: np.ndarray, depth_m: float) -> float:
+        """``depth_m``, or less so that an approach from ``start_xyz`` (inside) along ``direction_xyz`` ends
+        ``APPROACH_BOX_INSET_M`` inside the box (negative when it cannot)."""
+        return min(float(depth_m), self.reach_m(start_xyz, direction_xyz) - APPROACH_BOX_INSET_M)
 
     def check(self, points_xyz: np.ndarray, first: int = 0, slack_m: float = 0.0) -> None:
         """Raise :class:`OutsideWorkspace` for the first point (from index ``first`` on) outside the box
