@@ -15,7 +15,7 @@ return to μ = 0 within one step, or (3D) goes below ``min_z_m`` (the lowest
 tip-centre height: the commander's box would stop the slide there) or where
 the finger's rod above the tip would enter the estimate (``surface_ok``).
 One exception to the last: a 3D path heading down (t_z < −``DROP_MIN_DOWN``)
-along a wall (|n_xy| > 0.5) where the estimate turns under the rod goes on
+along a wall (|n_xy| > ``WALL_MIN_NXY``) where the estimate turns under the rod goes on
 straight down from the last point the rod cleared, while the rod (checked
 with that wall's horizontal normal) clears and the tip is above ``min_z_m``.
 Below the lowest contact the estimate of an object standing on the table
@@ -60,8 +60,10 @@ from .strategies import wrong_probability
 
 
 #: A 3D path heading down at least this steeply (−t_z) goes on straight down where the estimate turns
-#: under the finger's rod (sin 30°).
+#: under the finger's rod (sin 30°) ...
 DROP_MIN_DOWN = 0.5
+#: ... when it left a wall: a surface whose unit normal's horizontal part is longer than this.
+WALL_MIN_NXY = 0.5
 
 #: What a metre of planned slide is worth (``SlideParams.value``, the planner's ``slide_value``).
 SLIDE_VALUES = ("variance", "wrong_surface")
@@ -176,6 +178,14 @@ class _Field:
         return self._mean(x), np.column_stack([g(x) for g in self._grad])
 
 
+def _wall_normal(unit_normal_xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) unit horizontal parts of (M, 3) unit normals (zero where there is none) and (M,) whether each
+    is a wall's (|n_xy| > ``WALL_MIN_NXY``; NaN normals are not)."""
+    h = np.nan_to_num(np.column_stack([unit_normal_xyz[:, :2], np.zeros(len(unit_normal_xyz))]))
+    length = np.linalg.norm(h, axis=1)
+    return h / np.maximum(length, 1e-12)[:, None], length > WALL_MIN_NXY
+
+
 def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, step_m: float,
           n_steps: int, min_z_m: float = -np.inf,
           surface_ok: Optional[Callable[[np.ndarray, np.ndarray], np.ndarray]] = None,
@@ -198,15 +208,13 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
     pts[:, 0] = x
     ok[:, 0] = np.isfinite(x).all(axis=1) & (np.linalg.norm(t, axis=1) > 0.5)
     alive = ok[:, 0].copy()
+    may_drop = d == 3 and surface_ok is not None  # a drop needs the rod check it replaces
     dropping = np.zeros(M, bool)  # 3D: going straight down (the estimate turned under the rod)
     last_n = np.zeros((M, 3))  # 3D: the unit horizontal part of the last normal passed
-    wall_n = np.zeros(M, bool)  # ... and whether that normal was a wall's (|n_xy| > 0.5)
-    if d == 3 and surface_ok is not None and alive.any():
+    wall_n = np.zeros(M, bool)  # ... and whether that normal was a wall's
+    if may_drop and alive.any():
         _, g0 = field.mean_grad_at(x[alive])
-        h0 = np.column_stack([g0[:, :2], np.zeros(len(g0))]) / np.maximum(np.linalg.norm(g0, axis=1), 1e-12)[:, None]
-        l0 = np.nan_to_num(np.linalg.norm(h0, axis=1))
-        last_n[alive] = np.nan_to_num(h0 / np.maximum(l0, 1e-12)[:, None])
-        wall_n[alive] = l0 > 0.5
+        last_n[alive], wall_n[alive] = _wall_normal(g0 / np.maximum(np.linalg.norm(g0, axis=1), 1e-12)[:, None])
     for k in range(1, n_steps + 1):
         # only the paths still going: a path is valid up to its first failure, so the later points
         # of an ended one are never read (they stay where it ended)
@@ -245,16 +253,13 @@ def trace(lattice: MapLattice, start_xyz: np.ndarray, tangent_xyz: np.ndarray, s
                 xd = x[a[drop]] - np.array([0.0, 0.0, step_m])
                 nd = last_n[a[drop]]
                 ok_d = xd[:, 2] >= min_z_m
-                if surface_ok is not None and ok_d.any():
+                if ok_d.any():  # (a path drops only where surface_ok refused it)
                     ok_d[ok_d] = surface_ok(xd[ok_d], nd[ok_d])
                 xa[drop], go[drop] = xd, ok_d
                 t[a[drop]] = [0.0, 0.0, -1.0]
-            # the horizontal part of the last normal (a wall's), for a drop that may follow
-            hn = np.column_stack([nh[:, :2], np.zeros(len(a))])
-            hl = np.linalg.norm(hn, axis=1)
             keep = go & ~drop
-            last_n[a[keep]] = hn[keep] / np.maximum(hl[keep, None], 1e-12)
-            wall_n[a[keep]] = hl[keep] > 0.5
+            if may_drop and keep.any():  # the last normal passed, for a drop that may follow
+                last_n[a[keep]], wall_n[a[keep]] = _wall_normal(nh[keep])
         x[a] = xa
         alive[a] = go
         pts[:, k] = x
