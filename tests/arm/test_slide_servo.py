@@ -154,6 +154,30 @@ def test_lap_closes_when_the_contact_returns_to_its_start():
     assert stops[:-1] == [None] * (len(seq) - 1) and stops[-1] is SlideStop.LAP
 
 
+def corner_contact(tip):
+    """The solid quarter x ≥ 0.5, y ≤ 0 (a sharp convex edge along z at (0.5, 0)): contact at the
+    solid's nearest point, normal from it to the tip, force k·penetration of the tip's skin."""
+    near = np.array([max(tip[0], 0.5), min(tip[1], 0.0), tip[2]])
+    d = float(np.linalg.norm(tip - near))
+    if d >= R_TIP or d == 0.0:
+        return None
+    return ContactSense(near, (tip - near) / d, K_N_PER_M * (R_TIP - d))
+
+
+def test_rolling_round_a_sharp_corner_near_the_start_is_not_a_lap():
+    """A slide that starts 3 mm before a sharp convex edge: the contact stays on the edge while the
+    tip rolls a quarter circle round it (1.6 cm), so the contact is within lap_radius_m of the first
+    one after 4 lap radii of slide, but the tip is not back: the slide goes on round the corner and
+    along the next face to its planned length."""
+    cfg = SlideServoConfig(gain_m_per_n=1.0 / K_N_PER_M * 0.5)
+    tip = np.array([0.5 - R_TIP + 0.00002, -0.003, 0.06])
+    servo = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 0.05, *BOX, planar=True)
+    stop, tips, _ = run(servo, tip, corner_contact)
+    assert stop is SlideStop.LENGTH
+    assert tips[-1, 1] == pytest.approx(R_TIP, abs=1e-3)  # on the face y = 0, a tip radius off it
+    assert tips[-1, 0] > 0.5 + 0.015  # and well along it
+
+
 def test_a_slide_that_settles_below_its_first_contact_ends_after_one_lap_there():
     """A 3D slide on a vertical cylinder (radius R) whose first contact is 10 mm above the height it
     settles at, then circles there: the first-contact rule never fires (the circle stays 10 mm below

@@ -31,8 +31,10 @@ for ``lost_ticks`` ticks in a row (an edge, a corner it cannot wrap), when the
 force exceeds ``max_force_n`` (the band's top: the finger is jammed, e.g. in
 a concave corner narrower than the tip), when the next target would leave
 the workspace box, when the contact returns within ``lap_radius_m`` of the
-slide's first firm contact after sliding 4× that radius or more (a closed
-contour has been sensed all round; 0 = off), when the tip comes back within
+slide's first firm contact, and the tip within that of where it was then, after
+sliding 4× that radius or more (a closed contour has been sensed all round;
+0 = off; the contact alone is not enough: rolling round a sharp convex corner,
+the contact stays on the edge while the tip goes round it, up to π r_tip), when the tip comes back within
 ``lap_radius_m`` of where it was 4× that radius of slide or more before (it
 senses a band it has sensed: a 3D slide that settled at another height than
 its first contact laps there without ever meeting that contact again), or
@@ -178,7 +180,10 @@ class SlideServo:
         self.max_ticks = int(max_ticks) if max_ticks is not None else \
             int(np.ceil(3.0 * self.length_m / self.config.step_m)) + 10 * self.config.lost_ticks
         self.stopped: Optional[SlideStop] = None
-        self.first_point: Optional[np.ndarray] = None  # first firm contact (the lap rule)
+        # first firm contact and the tip then (the lap rule: both back; round a sharp convex corner the
+        # contact stays at the edge while the tip rolls on)
+        self.first_point: Optional[np.ndarray] = None
+        self.first_tip: Optional[np.ndarray] = None
         # the tip every lap_radius_m / 2 of slide, with the slid length there (the lap rule)
         self._trail_xyz = np.empty((0, 3))
         self._trail_s = np.empty(0)
@@ -224,9 +229,10 @@ class SlideServo:
         if not weak and cfg.lap_radius_m > 0:
             p = np.asarray(contact.point_xyz, dtype=float).reshape(3)
             if self.first_point is None:
-                self.first_point = p
+                self.first_point, self.first_tip = p, tip.copy()
             elif self.slid_m >= 4.0 * cfg.lap_radius_m and \
-                    float(np.linalg.norm(self._flat(p - self.first_point))) < cfg.lap_radius_m:
+                    float(np.linalg.norm(self._flat(p - self.first_point))) < cfg.lap_radius_m and \
+                    float(np.linalg.norm(self._flat(tip - self.first_tip))) < cfg.lap_radius_m:
                 return self._stop(SlideStop.LAP)
             if self._tip_revisits(tip):
                 return self._stop(SlideStop.LAP)
