@@ -174,6 +174,58 @@ def test_3d_table_rings_sweep_the_annulus_at_the_lowest_probe_height():
     assert dist.max() <= r + 1e-9
 
 
+def test_3d_table_ring_field_is_the_distance_to_a_cylinder_capped_above_the_ring():
+    """``cap_above_m``: the planning field is the signed distance to the solid cylinder from the
+    table up to that height above the ring. Oracle: the distance to points sampled on its side wall
+    and top (≤ 1 mm apart), negative inside."""
+    ax = (np.linspace(0.35, 0.65, 16), np.linspace(-0.15, 0.15, 16), np.linspace(0.0, 0.22, 12))
+    grids = np.meshgrid(*ax, indexing="ij")
+    lat = MapLattice(axes=ax, mean_m=0.05 + 0 * grids[0], variance_m2=1e-3 + 0 * grids[0], plane_z_m=0.0)
+    radius, z, cap = 0.075, 0.017, 0.02
+    search_lat, _ = ring_search_map(lat, radius, 0.02, min_z_m=0.015, inset_m=0.02, table_z_m=z, cap_above_m=cap)
+    top = z + cap
+    phi = np.linspace(0, 2 * np.pi, 500, endpoint=False)
+    wall = [np.column_stack([0.5 + radius * np.cos(phi), radius * np.sin(phi), np.full(phi.size, h)])
+            for h in np.arange(-0.3, top, 0.001)]  # the wall goes on below the lattice (the table)
+    disc = [np.column_stack([0.5 + r * np.cos(phi), r * np.sin(phi), np.full(phi.size, top)])
+            for r in np.arange(0.0, radius + 1e-9, 0.001)]
+    surface = np.vstack(wall + disc)
+    from scipy.spatial import cKDTree
+    q = np.column_stack([g.ravel() for g in grids])
+    d = cKDTree(surface).query(q)[0]
+    inside = (np.hypot(q[:, 0] - 0.5, q[:, 1]) < radius) & (q[:, 2] < top)
+    np.testing.assert_allclose(search_lat.mean_m.ravel(), np.where(inside, -d, d), atol=1e-3)
+
+
+def test_a_tip_left_inside_the_table_ring_leaves_it_over_the_top():
+    """A probe that missed leaves the tip inside the ring at the probe height: the next ring probe's
+    path goes over the ring's cap (a pre-touch offset above it), not up to the lattice's top as round
+    an endless cylinder."""
+    params = dict(load_params(str(CONFIG)), mode="3d", strategy="info_travel", clearance="mean",
+                  search_rings_first=True, search_rings_3d="table")
+    ax = (np.linspace(0.35, 0.65, 31), np.linspace(-0.15, 0.15, 31), np.linspace(0.0, 0.22, 23))
+    grids = np.meshgrid(*ax, indexing="ij")
+    lat = MapLattice(axes=ax, mean_m=0.05 + 0 * grids[0], variance_m2=1e-3 + 0 * grids[0], plane_z_m=None)
+    X, Y, Z = grids
+    m = np.zeros(X.size, dtype=VARIANCE_MAP_DTYPE)
+    m["x"], m["y"], m["z"] = X.ravel(), Y.ravel(), Z.ravel()
+    m["mean"], m["variance"], m["kind"] = lat.mean_m.ravel(), lat.variance_m2.ravel(), KIND_LATTICE
+    tip = np.array([0.5, 0.01, 0.03])  # in the ring, below its top
+    res = TouchPlanner.from_params(params, seed=1).plan(m, tip)
+    assert res.ok and "coverage ring" in res.message, res.message
+    pretouch_m = params["tip_radius_m"] + params["standoff_m"]
+    top = res.target_xyz[2] + pretouch_m  # the cap: a pre-touch offset above the ring
+    path = res.path_xyz
+    np.testing.assert_allclose(path[-1], res.pretouch_xyz, atol=1e-9)
+    assert path[:, 2].max() <= top + params["margin_m"] + 0.011, path  # + one lattice spacing
+    # straight up out of it, then over the cap: never through the ring's wall below its top
+    t = np.linspace(0.0, 1.0, 50)[:, None, None]
+    q = (path[:-1][None] + t * np.diff(path, axis=0)[None]).reshape(-1, 3)
+    ring_r = np.hypot(res.target_xyz[0] - 0.5, res.target_xyz[1])
+    column = np.hypot(q[:, 0] - tip[0], q[:, 1] - tip[1]) < 1e-9
+    assert np.all(column | (q[:, 2] >= top) | (np.hypot(q[:, 0] - 0.5, q[:, 1]) >= ring_r - 1e-3)), path
+
+
 def test_a_lost_object_is_searched_where_most_probable_then_ring_by_ring_each_spot_once():
     """No estimated surface: the planner probes where the object is most probable; once every spot
     there was probed (the same map every time: the misses taught nothing), it covers the workspace

@@ -486,7 +486,8 @@ class TouchPlanner:
             for radius in ring_radii_m(lattice, geometry.approach_length_m) if lost and spacing > 0 else ():
                 # the pre-touch point must be on the lattice too
                 ring = ring_search_map(lattice, radius, spacing, min_z, geometry.pretouch_offset_m,
-                                       table_z_m=min_z + FOOT_PROBE_LIFT_M if table else None)
+                                       table_z_m=min_z + FOOT_PROBE_LIFT_M if table else None,
+                                       cap_above_m=geometry.pretouch_offset_m)
                 if ring is not None:
                     res = self._plan_on(*ring, tip, excluded_targets, f"search ({why}; coverage ring "
                                         f"r = {radius:.3f} m around the workspace centre): ")

@@ -171,7 +171,8 @@ def floating_base(lattice: MapLattice, min_z_m: float, gap_m: float) -> Optional
 
 def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_z_m: float = -np.inf,
                     inset_m: float = 0.0, centre_xyz: Optional[np.ndarray] = None,
-                    max_z_m: float = np.inf, table_z_m: Optional[float] = None) -> Optional[tuple[MapLattice, Candidates]]:
+                    max_z_m: float = np.inf, table_z_m: Optional[float] = None,
+                    cap_above_m: float = np.inf) -> Optional[tuple[MapLattice, Candidates]]:
     """The coverage search of one ring: the lattice with s = |x − c| − r in place of μ (paths keep
     off the ring) and candidates ``spacing_m`` apart on it, normals pointing away from the centre c
     (:func:`ring_centre`), so each probe sweeps the ring's width towards the centre.
@@ -185,7 +186,10 @@ def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_
     another centre than the workspace's (a floating estimate's footprint, :func:`floating_base`).
 
     3D with ``table_z_m``: the ring is the horizontal circle at that height (the lowest probe height),
-    approached level towards the centre, and s = the distance to the vertical cylinder through it. An
+    approached level towards the centre, and s = the signed distance to the solid cylinder through it,
+    from the table up to ``cap_above_m`` above the ring (its top; default none: an infinite
+    cylinder). Paths keep off the ring at the probe height and may cross above it: a tip left inside
+    the ring by a probe that missed leaves it over the top, not by the lattice's top. An
     object stands on the table, so its footprint crosses the height every object reaches; a circle
     needs 2πr/spacing probes where the hemisphere needs 2πr²/spacing² (24 against 88 at r = 7.5 cm),
     and it finds a flat object that the hemisphere's probes pass over.
@@ -208,4 +212,7 @@ def ring_search_map(lattice: MapLattice, radius_m: float, spacing_m: float, min_
         return None
     grids = np.meshgrid(*lattice.axes, indexing="ij")
     s = np.sqrt(sum((g - c[k]) ** 2 for k, g in enumerate(grids[:2] if flat else grids))) - radius_m
+    if flat and np.isfinite(cap_above_m):
+        above_m = grids[2] - (table_z_m + cap_above_m)  # signed distance to the top's plane
+        s = np.where((s > 0) & (above_m > 0), np.hypot(s, above_m), np.maximum(s, above_m))
     return _searching(lattice, s, pts, dirs)
