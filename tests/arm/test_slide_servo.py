@@ -144,6 +144,26 @@ def test_box_stops_before_leaving_it():
     assert stop is SlideStop.BOX and tips[:, 1].max() <= 0.02 and tips[-1, 1] > 0.02 - cfg.step_m
 
 
+@pytest.mark.parametrize("direction, goes_on", [((0.0, 1.0, -0.5), True), ((0.0, 0.3, -1.0), False)])
+def test_a_3d_slide_at_the_floor_goes_on_along_it_unless_it_heads_down(direction, goes_on):
+    """3D, a wall down to the table: a slide heading along and down reaches the box's floor and goes on
+    along it, at the floor, to its planned length (the foot of the wall); one heading down more steeply
+    than FLOOR_MIN_TXY allows ends there on the box. No target is ever below the floor."""
+    cfg = SlideServoConfig(gain_m_per_n=1.0 / K_N_PER_M * 0.5)
+    floor = 0.05
+    box = (np.array([0.0, -1.0, floor]), np.array([1.0, 1.0, 1.0]))
+    servo = SlideServo(cfg, np.array(direction), 0.06, *box)
+    stop, tips, _ = run(servo, np.array([0.5 - R_TIP + 0.00002, 0.0, 0.06]), wall_contact)
+    assert tips[:, 2].min() >= floor - 1e-12
+    if goes_on:
+        assert stop is SlideStop.LENGTH and servo.slid_m == pytest.approx(0.06)
+        assert tips[-1, 2] < floor + cfg.step_m
+        # down to the floor along the wall (1 cm at t_z = -1/sqrt(5)), then along the floor
+        assert tips[-1, 1] == pytest.approx(0.01 * 2.0 + (0.06 - 0.01 * np.sqrt(5.0)), abs=cfg.step_m)
+    else:
+        assert stop is SlideStop.BOX and tips[-1, 2] < floor + cfg.step_m
+
+
 def test_lap_closes_when_the_contact_returns_to_its_start():
     cfg = SlideServoConfig()
     servo = SlideServo(cfg, np.array([0.0, 1.0, 0.0]), 10.0, *BOX, planar=True)

@@ -30,7 +30,9 @@ tangent steps) reaches the planned length, when the contact is weak or lost
 for ``lost_ticks`` ticks in a row (an edge, a corner it cannot wrap), when the
 force exceeds ``max_force_n`` (the band's top: the finger is jammed, e.g. in
 a concave corner narrower than the tip), when the next target would leave
-the workspace box, when the contact returns within ``lap_radius_m`` of the
+the workspace box (3D: one below the box's floor, the table's margin, goes on
+along the floor instead while the tangent heads along more than down,
+|t_xy| ≥ ``FLOOR_MIN_TXY``: the foot of a wall), when the contact returns within ``lap_radius_m`` of the
 slide's first firm contact, and the tip within that of where it was then, after
 sliding 4× that radius or more (a closed contour has been sensed all round;
 0 = off; the contact alone is not enough: rolling round a sharp convex corner,
@@ -143,6 +145,11 @@ class SlideStep:
     tangent_xyz: Optional[np.ndarray] = None
 
 
+#: 3D: a slide at the box's floor whose tangent's horizontal part is at least this long goes on along the
+#: floor (the foot of a wall); one heading down more steeply ends there (``box``)
+FLOOR_MIN_TXY = 0.5
+
+
 def _unit(v: np.ndarray) -> Optional[np.ndarray]:
     n = float(np.linalg.norm(v))
     return v / n if np.isfinite(n) and n > 1e-9 else None
@@ -248,6 +255,13 @@ class SlideServo:
                                        -cfg.max_correction_m, cfg.max_correction_m))
         step = 0.0 if weak else max(0.0, min(cfg.step_m, self.length_m - self.slid_m))
         target = tip + step * self.tangent - correction * n
+        if not self.planar and target[2] < self.box_min[2] and \
+                float(np.hypot(self.tangent[0], self.tangent[1])) >= FLOOR_MIN_TXY:
+            # at the box's floor (above the table), going along more than down: on along the floor,
+            # the tangent's horizontal part (the foot of a wall the slide came down to)
+            self.tangent = self.tangent * [1.0, 1.0, 0.0] / float(np.hypot(self.tangent[0], self.tangent[1]))
+            target = tip + step * self.tangent - correction * n
+            target[2] = max(float(target[2]), float(self.box_min[2]))
         if np.any(target < self.box_min) or np.any(target > self.box_max):
             return self._stop(SlideStop.BOX)
         self.slid_m += step
