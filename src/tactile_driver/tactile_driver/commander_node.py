@@ -59,8 +59,8 @@ SLIDE_PARAMS = {
                               {"gt": 0.0}),
     "slide.thin_angle_rad": (_S.thin_angle_rad, "slide: ...or when the normal turned by this much", {"gt": 0.0}),
     "slide.lap_radius_m": (_S.lap_radius_m,
-                           "slide: contact and tip back within this of the first contact's, or the tip of its own path: a lap, "
-                           "stop (0 = off)",
+                           "slide: contact and tip back within this of the first contact's, or the tip "
+                           "of its own path: a lap, stop (0 = off)",
                            {"ge": 0.0}),
     "slide.approach_depth_m": (_S.approach_depth_m, "slide: the guarded approach's depth beyond the estimated "
                                "surface before a slide", {"gt": 0.0}),

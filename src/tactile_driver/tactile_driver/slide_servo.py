@@ -32,11 +32,12 @@ force exceeds ``max_force_n`` (the band's top: the finger is jammed, e.g. in
 a concave corner narrower than the tip), when the next target would leave
 the workspace box (3D: one below the box's floor, the table's margin, goes on
 along the floor instead while the tangent heads along more than down,
-|t_xy| ≥ ``FLOOR_MIN_TXY``: the foot of a wall), when the contact returns within ``lap_radius_m`` of the
-slide's first firm contact, and the tip within that of where it was then, after
-sliding 4× that radius or more (a closed contour has been sensed all round;
-0 = off; the contact alone is not enough: rolling round a sharp convex corner,
-the contact stays on the edge while the tip goes round it, up to π r_tip), when the tip comes back within
+|t_xy| ≥ ``FLOOR_MIN_TXY``: the foot of a wall), when the contact returns
+within ``lap_radius_m`` of the slide's first firm contact, and the tip within
+that of where it was then, after sliding 4× that radius or more (a closed
+contour has been sensed all round; 0 = off; the contact alone is not enough:
+rolling round a sharp convex corner, the contact stays on the edge while the
+tip goes round it, up to π r_tip), when the tip comes back within
 ``lap_radius_m`` of where it was 4× that radius of slide or more before (it
 senses a band it has sensed: a 3D slide that settled at another height than
 its first contact laps there without ever meeting that contact again), or
