@@ -257,10 +257,10 @@ class SlideServo:
         step = 0.0 if weak else max(0.0, min(cfg.step_m, self.length_m - self.slid_m))
         target = tip + step * self.tangent - correction * n
         if not self.planar and target[2] < self.box_min[2] and \
-                float(np.hypot(self.tangent[0], self.tangent[1])) >= FLOOR_MIN_TXY:
+                (along := float(np.hypot(self.tangent[0], self.tangent[1]))) >= FLOOR_MIN_TXY:
             # at the box's floor (above the table), going along more than down: on along the floor,
             # the tangent's horizontal part (the foot of a wall the slide came down to)
-            self.tangent = self.tangent * [1.0, 1.0, 0.0] / float(np.hypot(self.tangent[0], self.tangent[1]))
+            self.tangent = self.tangent * [1.0, 1.0, 0.0] / along
             target = tip + step * self.tangent - correction * n
             target[2] = max(float(target[2]), float(self.box_min[2]))
         if np.any(target < self.box_min) or np.any(target > self.box_max):
