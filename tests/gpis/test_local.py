@@ -312,3 +312,23 @@ def test_candidates_lie_within_the_snap_distance_of_the_level_set(snap_m):
         prev = set(map(tuple, C))
     if snap_m == 0:
         assert moved > 0  # the vertices do move, the snapping is what keeps them
+
+
+def test_the_anchor_mean_gathered_per_point_is_the_anchor_gps_own_prediction():
+    """mu_A and its gradient at value and gradient rows, summed over the anchor points (value and
+    gradient weights gathered per point), equal the anchor GP's own prediction (its rows, one by one)
+    at random points and at the observations themselves (where r = 0)."""
+    est = ShapeEstimator.from_params({"mode": "3d", "method": "local", "duplicate_distance_m": 0.0})
+    fill(est, *lobed_surface(120))
+    assert est.add_observation(np.array([0.5, 0.0, 0.2]), None, 0)[0]  # a free-space row: value only
+    loc = est.local
+    loc._commit_anchors()
+    assert loc.n_anchors > 10 and (loc.anchor.t < 0).sum() < len(loc.anchor.t)  # value and gradient rows
+    Q = np.vstack([np.random.default_rng(1).uniform(est.bounds_m[0], est.bounds_m[1], (300, 3)), loc.anchor.X[:40]])
+    Xg, tg = gradient_rows(Q)
+    got = loc._mu_a(np.vstack([Q, Xg]), np.r_[np.full(len(Q), VALUE), tg])
+    mean = loc.anchor.predict(Q)[0]
+    grad = loc.anchor.predict_gradient(Q)
+    np.testing.assert_allclose(got[: len(Q)], mean, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got[len(Q):].reshape(len(Q), 3), grad, rtol=0, atol=1e-10)
+

@@ -47,7 +47,7 @@ from .expert import ExpertGP
 from .gp import GPIS, VALUE, FactorError, MeanFn, cross_cov, gradient_rows, zero_mean
 from .kernels import Kernel
 
-_CHUNK_ROWS = 2048  # query rows per cross-covariance chunk
+_CHUNK_ELEMS = 2_000_000  # elements of the (queries, anchor points, d) difference array per chunk
 
 
 def _smoothstep(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -263,6 +263,7 @@ class LocalGPIS:
         self.anchor = GPIS(self.kernel, d, self.mean_fn, self.jitter)
         self.anchor.set_eval_points(self._coarse)
         self._anchor_alpha = np.zeros(0)
+        self._anchor_pts: Optional[tuple] = None  # _anchor_weights(): (rev, points, a_v, a_g)
         self._anchor_rev = 0  # bumped at every anchor commit (the anchor mean/variance changed)
         self._qids: dict[bytes, int] = {}  # predict_candidates: coordinates -> id (the last call's points)
         self._next_qid = 0
@@ -322,14 +323,47 @@ class LocalGPIS:
         return np.flatnonzero(np.all((b[which + "hi"] >= lo) & (b[which + "lo"] <= hi), axis=1))
 
     # -- anchor GP -------------------------------------------------------------
+    def _anchor_weights(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The anchor GP's alpha = K^-1 (y - m) gathered per point: points P (p, d), the weight of
+        their value rows a_v (p,) and of their gradient rows a_g (p, d) (zero where a point has
+        none); kept until the next commit."""
+        if self._anchor_pts is None or self._anchor_pts[0] != self._anchor_rev:
+            t, a = np.asarray(self.anchor.t), self._anchor_alpha
+            P, inv = np.unique(self.anchor.X, axis=0, return_inverse=True)
+            inv = inv.ravel()
+            a_v = np.bincount(inv, weights=np.where(t < 0, a, 0.0), minlength=len(P))
+            a_g = np.stack([np.bincount(inv, weights=np.where(t == i, a, 0.0), minlength=len(P))
+                            for i in range(self.dim)], axis=1)
+            self._anchor_pts = (self._anchor_rev, P, a_v, a_g)
+        return self._anchor_pts[1:]
+
     def _mu_a(self, X: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Anchor posterior mean of the rows (X, t): values or gradient components."""
+        """Anchor posterior mean of the rows (X, t): values or gradient components.
+
+        mu_A(q) = m(q) + sum_p [k(r) a_v(p) - g(r) u.a_g(p)] with u = q - p, r = |u| (the value
+        and gradient blocks of :func:`cross_cov`), and its derivative
+        d_i mu_A(q) = d_i m(q) + sum_p [u_i (g a_v - h u.a_g) - g a_g,i]: one pass over the anchor
+        points, not over their rows."""
         mv, mg = self.mean_fn(X)
         out = np.where(t < 0, mv, mg[np.arange(len(t)), np.maximum(t, 0)])
-        if self.anchor.n:
-            for s in range(0, len(t), _CHUNK_ROWS):
-                e = min(len(t), s + _CHUNK_ROWS)
-                out[s:e] += cross_cov(self.kernel, X[s:e], t[s:e], self.anchor.X, self.anchor.t) @ self._anchor_alpha
+        if not self.anchor.n:
+            return out
+        P, a_v, a_g = self._anchor_weights()
+        step = max(1, _CHUNK_ELEMS // (len(P) * self.dim))
+        for s in range(0, len(t), step):
+            e = min(len(t), s + step)
+            U = X[s:e, None, :] - P[None, :, :]  # (c, p, d)
+            k, g, h = self.kernel.radial(np.sqrt(np.einsum("cpd,cpd->cp", U, U)))
+            ua = np.einsum("cpd,pd->cp", U, a_g)
+            tc = t[s:e]
+            val = tc < 0
+            if val.any():
+                out[s:e][val] += k[val] @ a_v - np.einsum("cp,cp->c", g[val], ua[val])
+            if not val.all():
+                gr = np.flatnonzero(~val)
+                i = tc[gr]
+                W = g[gr] * a_v - h[gr] * ua[gr]
+                out[s + gr] += (np.einsum("cp,cp->c", W, U[gr, :, i]) - np.einsum("cp,cp->c", g[gr], a_g[:, i].T))
         return out
 
     def _refresh_coarse(self) -> None:
