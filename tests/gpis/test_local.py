@@ -163,7 +163,9 @@ def test_the_maps_band_variance_is_the_blended_prediction_through_splits_and_anc
     band = loc._band & (loc._wsum > 0)
     _, direct = loc.predict(loc._lattice[band])
     np.testing.assert_allclose(v[band], direct, rtol=1e-6, atol=1e-14)
-    assert (v[band] < 0.5 * np.maximum(loc._var_a_lat[band], 0)).mean() > 0.5  # tighter than the bound
+    # tighter than the anchor GP's bound almost everywhere (measured: on 96 % of the band, median 0.55 of it)
+    ratio = v[band] / np.maximum(loc._var_a_lat[band], 1e-300)
+    assert (ratio < 1).mean() > 0.9 and np.median(ratio) < 0.7
     np.testing.assert_array_equal(v[~band], np.maximum(loc._var_a_lat[~band], 0.0))
 
 
@@ -322,7 +324,6 @@ def test_the_anchor_mean_gathered_per_point_is_the_anchor_gps_own_prediction():
     fill(est, *lobed_surface(120))
     assert est.add_observation(np.array([0.5, 0.0, 0.2]), None, 0)[0]  # a free-space row: value only
     loc = est.local
-    loc._commit_anchors()
     assert loc.n_anchors > 10 and (loc.anchor.t < 0).sum() < len(loc.anchor.t)  # value and gradient rows
     Q = np.vstack([np.random.default_rng(1).uniform(est.bounds_m[0], est.bounds_m[1], (300, 3)), loc.anchor.X[:40]])
     Xg, tg = gradient_rows(Q)
@@ -332,3 +333,27 @@ def test_the_anchor_mean_gathered_per_point_is_the_anchor_gps_own_prediction():
     np.testing.assert_allclose(got[: len(Q)], mean, rtol=0, atol=1e-12)
     np.testing.assert_allclose(got[len(Q):].reshape(len(Q), 3), grad, rtol=0, atol=1e-10)
 
+
+@pytest.mark.parametrize("miss", [False, True])
+def test_a_slide_up_a_new_side_and_a_miss_above_it_reach_the_far_field_at_once(miss):
+    """Rings of contacts round a 2 cm post, then a slide of contacts up one side above them (new
+    surface, each > anchor_spacing_m from the last anchor every 3 contacts), then (``miss``) a free-space
+    point above it: the local lattice mean says inside where the dense exact GP does (Jaccard of the
+    inside sets on every 2nd node >= 0.95). Anchors that waited for a batch (a quarter of the anchors)
+    left the slide's far field out: Jaccard 0.54, and 0.93 with the miss (measured; now 0.97 and 0.98)."""
+    est = ShapeEstimator.from_params({"mode": "3d", "method": "local"})
+    c = np.array([0.5, 0.0])
+    for z in np.arange(0.02, 0.09, 0.01):
+        for a in np.linspace(0, 2 * np.pi, 24, endpoint=False):
+            n = np.array([np.cos(a), np.sin(a), 0.0])
+            assert est.add_observation(np.r_[c + 0.02 * n[:2], z], n, 1)[0]
+    for z in np.arange(0.095, 0.14, 0.005):
+        assert est.add_observation(np.array([c[0] - 0.02, 0.0, z]), np.array([-1.0, 0.0, 0.0]), 1)[0]
+    if miss:
+        assert est.add_observation(np.array([0.51, 0.0, 0.17]), None, 0) == (True, "")
+    sl = (slice(None, None, 2),) * 3
+    Q = est._lattice.reshape(*est.lattice_shape, 3)[sl].reshape(-1, 3)
+    local, exact = est.lattice_mean()[sl].ravel() < 0, DenseGP(est).mean(Q) < 0
+    assert exact.sum() > 100
+    jaccard = (local & exact).sum() / (local | exact).sum()
+    assert jaccard >= 0.95, (jaccard, local.sum(), exact.sum())

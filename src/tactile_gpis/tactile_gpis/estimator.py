@@ -303,6 +303,7 @@ class ShapeEstimator:
             self.local = None
         self._obs: list[tuple] = []  # accepted GP observations (x, value, var, normal, normal var)
         self._obs_tuned: list[bool] = []  # per _obs: its value noise is noise.contact_var_m2 (kernel.fit tunes it)
+        self._obs_anchor: list[bool] = []  # per _obs: a probe's free-space end (the local path anchors it at once)
         self._n_gp_contacts = 0  # contacts added to the GP (kernel.fit's schedule)
         #: the last kernel.fit search (None: none yet)
         self.last_fit: Optional[FitResult] = None
@@ -374,11 +375,12 @@ class ShapeEstimator:
                 self.n_thinned += 1
                 return True, f"thinned: {why}"
         try:
-            self._model().add_observation(*obs)
+            self._add_to_model(obs, anchor=label == LABEL_FREE_SPACE)
         except FactorError as exc:
             return False, f"rejected by the GP: {exc}"
         self._obs.append(obs)
         self._obs_tuned.append(label == LABEL_CONTACT and value_var_m2 is None)
+        self._obs_anchor.append(label == LABEL_FREE_SPACE)
         if label == LABEL_FREE_SPACE:
             self._add_sweep(x, normal_xyz, obs[2])
         normal = np.full(3, np.nan) if normal_xyz is None else np.asarray(normal_xyz, float).ravel()
@@ -424,6 +426,7 @@ class ShapeEstimator:
                 continue  # a row the factor cannot take: the probe end itself is in
             self._obs.append(row)
             self._obs_tuned.append(False)
+            self._obs_anchor.append(False)
             near = np.vstack([near, x])
             self._points = np.vstack([self._points, x])
 
@@ -567,11 +570,19 @@ class ShapeEstimator:
         """The GP taking observations and answering queries: the exact GPIS or the local one."""
         return self.local if self.local is not None else self.gp
 
+    def _add_to_model(self, obs: tuple, anchor: bool) -> None:
+        """One observation into the GP; on the local path a probe's free-space end joins the anchor GP
+        at once (``anchor``: a miss removes estimated solid anywhere, beyond the experts that hold it)."""
+        if self.local is not None:
+            self.local.add_observation(*obs, anchor=anchor)
+        else:
+            self.gp.add_observation(*obs)
+
     def _switch_to_local(self) -> None:
         """'auto': rebuild the observations so far as a LocalGPIS and drop the exact lattice state."""
         local = self._new_local()
-        for obs in self._obs:
-            local.add_observation(*obs)
+        for obs, anchor in zip(self._obs, self._obs_anchor):
+            local.add_observation(*obs, anchor=anchor)
         self.local = local
         self.gp.reset()
         self.gp.clear_eval_points()

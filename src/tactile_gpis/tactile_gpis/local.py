@@ -22,9 +22,11 @@ Cost per contact: one Cholesky append (O(m^2) for m rows) in each expert whose d
 holds the point (about (1 + 2 context)^(d-1) experts for points on a surface), and the
 band lattice nodes of those experts. A leaf holding more than ``leaf_capacity`` contacts
 splits into 2^d children (refactored once), so every expert stays small and the state is
-O(n m) for n observations. Anchors are committed to the anchor GP in batches (when the
-pending ones reach ``anchor_batch`` of the anchor count, or the oldest waited
-``anchor_delay`` observations); a commit recomputes every residual and expert (O(n |A|)).
+O(n m) for n observations. An anchor joins the anchor GP as it comes (a probe's free-space end
+always does, however near other anchors: it can remove estimated solid anywhere); the commit
+recomputes mu_A at every row and band node (O((n + band) |A|)) and every expert's residuals
+(O(m^2) each). Anchors waiting for a batch left the far field without the newest surface: after
+a slide up a new side the local mean differed in sign from the exact one at hundreds of nodes.
 
 The lattice mean is exact-blended on the *band*: nodes with |mu_A| < ``band_m`` or within
 ``band_m`` of an observation (the band only grows); elsewhere it is mu_A interpolated
@@ -206,7 +208,7 @@ class LocalGPIS:
             dense data (measured).
         blend: weight ramp half-width, as a fraction of min(cell size, context_m) (< 1).
         min_leaf_m: leaves never split below this size.
-        anchor_spacing_m, max_anchors, anchor_batch, anchor_delay: the anchor subset.
+        anchor_spacing_m, max_anchors: the anchor subset.
         band_m: lattice band half-width around the zero level set and the observations.
         coarse_stride: the anchor GP's lattice takes every n-th node per axis.
     """
@@ -214,8 +216,7 @@ class LocalGPIS:
     def __init__(self, kernel: Kernel, dim: int, mean_fn: Optional[MeanFn], jitter: float,
                  bounds_m: np.ndarray, lattice_axes: list[np.ndarray], *, leaf_capacity: int = 32,
                  context_m: float = 0.012, context_spacings: float = 1.6, blend: float = 0.25, min_leaf_m: float = 0.004,
-                 anchor_spacing_m: float = 0.015, max_anchors: int = 256, anchor_batch: float = 0.25,
-                 anchor_delay: int = 64, band_m: float = 0.008, coarse_stride: int = 3,
+                 anchor_spacing_m: float = 0.015, max_anchors: int = 256, band_m: float = 0.008, coarse_stride: int = 3,
                  max_rows: int = 0) -> None:
         if not 0 < blend < 1:
             raise ValueError(f"local blend {blend} must be in (0, 1)")
@@ -236,7 +237,6 @@ class LocalGPIS:
         self.min_leaf_m = float(min_leaf_m)
         self.max_rows = int(max_rows) if max_rows > 0 else 1 << 62
         self.anchor_spacing_m, self.max_anchors = float(anchor_spacing_m), int(max_anchors)
-        self.anchor_batch, self.anchor_delay = float(anchor_batch), int(anchor_delay)
         self.band_m = float(band_m)
         grids = np.meshgrid(*self.axes, indexing="ij")
         self._lattice = np.stack([g.ravel() for g in grids], axis=-1)
@@ -269,7 +269,6 @@ class LocalGPIS:
         self._next_qid = 0
         self._anchor_q: Optional[tuple] = None  # predict_candidates: (rev, ids, mean_a, grad_a, var_a)
         self._anchor_obs: list[int] = []
-        self._pending: list[int] = []
         self.leaves = [self._new_leaf(self.bounds_m[0].copy(), self.bounds_m[1].copy(), 0)]
         self._boxes: Optional[dict] = None
         M = len(self._lattice)
@@ -372,16 +371,19 @@ class LocalGPIS:
         self._var_a_coarse = self.anchor.eval_variance()
         self._var_a_lat = self._interp @ self._var_a_coarse
 
-    def _commit_anchors(self) -> None:
-        """Add the pending anchors to the anchor GP; recompute every residual and expert."""
-        for i in self._pending:
+    def _commit_anchors(self, new: list[int]) -> None:
+        """Add observations ``new`` to the anchor GP; recompute every residual and expert."""
+        added = 0
+        for i in new:
             s, k = self._obs_start[i], self._obs_len[i]
             try:
                 self.anchor.add_rows(self._X[s:s + k], self._t[s:s + k], self._y[s:s + k], self._noise[s:s + k])
             except FactorError:
                 continue  # an anchor the anchor GP cannot take stays a local observation only
             self._anchor_obs.append(i)
-        self._pending = []
+            added += 1
+        if not added:
+            return
         self._anchor_rev += 1
         self._anchor_alpha = self.anchor.alpha
         self._resid = self._y - self._mu_a(self._X, self._t)
@@ -472,8 +474,13 @@ class LocalGPIS:
 
     # -- observations ------------------------------------------------------------
     def add_observation(self, x: np.ndarray, value: float, value_noise_var: float,
-                        gradient: Optional[np.ndarray] = None, gradient_noise_var: float = 0.0) -> None:
+                        gradient: Optional[np.ndarray] = None, gradient_noise_var: float = 0.0,
+                        anchor: bool = False) -> None:
         """One point: its value and optionally its gradient (1 or 1 + d rows), as GPIS.
+
+        ``anchor``: the point joins the anchor GP however near other anchors it is (while there are
+        fewer than ``max_anchors``): for evidence about the far field, such as a free-space point,
+        which can remove estimated solid anywhere, where the experts only reach their weight supports.
 
         Raises:
             FactorError: an expert cannot take the rows; the state is unchanged.
@@ -533,16 +540,16 @@ class LocalGPIS:
         big = len(owner.own) > self.leaf_capacity or (len(owner.rows) > self.max_rows and size > owner.context_m)
         if big and size >= 2 * self.min_leaf_m:
             self._split(owner)
-        self._maybe_anchor(i, x)
+        self._maybe_anchor(i, x, always=anchor)
 
-    def _maybe_anchor(self, i: int, x: np.ndarray) -> None:
-        cand = self._anchor_obs + self._pending
-        if len(cand) < self.max_anchors:
-            if not cand or np.min(((self._obs_pts[cand] - x) ** 2).sum(1)) > self.anchor_spacing_m ** 2:
-                self._pending.append(i)
-        if self._pending and (len(self._pending) >= max(1.0, self.anchor_batch * len(self._anchor_obs))
-                              or self.n_obs - 1 - self._pending[0] >= self.anchor_delay):
-            self._commit_anchors()
+    def _maybe_anchor(self, i: int, x: np.ndarray, always: bool = False) -> None:
+        """Observation i joins the anchor GP now if it is farther than ``anchor_spacing_m`` from every
+        anchor (or ``always``), while there are fewer than ``max_anchors``."""
+        A = self._anchor_obs
+        if len(A) >= self.max_anchors:
+            return
+        if always or not A or np.min(((self._obs_pts[A] - x) ** 2).sum(1)) > self.anchor_spacing_m ** 2:
+            self._commit_anchors([i])
 
     def _owner(self, x: np.ndarray) -> _Leaf:
         """The leaf whose cell holds x (cells are half-open, closed at the root's top)."""
