@@ -371,19 +371,14 @@ class LocalGPIS:
         self._var_a_coarse = self.anchor.eval_variance()
         self._var_a_lat = self._interp @ self._var_a_coarse
 
-    def _commit_anchors(self, new: list[int]) -> None:
-        """Add observations ``new`` to the anchor GP; recompute every residual and expert."""
-        added = 0
-        for i in new:
-            s, k = self._obs_start[i], self._obs_len[i]
-            try:
-                self.anchor.add_rows(self._X[s:s + k], self._t[s:s + k], self._y[s:s + k], self._noise[s:s + k])
-            except FactorError:
-                continue  # an anchor the anchor GP cannot take stays a local observation only
-            self._anchor_obs.append(i)
-            added += 1
-        if not added:
-            return
+    def _commit_anchor(self, i: int) -> None:
+        """Add observation i to the anchor GP; recompute every residual and expert."""
+        s, k = self._obs_start[i], self._obs_len[i]
+        try:
+            self.anchor.add_rows(self._X[s:s + k], self._t[s:s + k], self._y[s:s + k], self._noise[s:s + k])
+        except FactorError:
+            return  # an anchor the anchor GP cannot take stays a local observation only
+        self._anchor_obs.append(i)
         self._anchor_rev += 1
         self._anchor_alpha = self.anchor.alpha
         self._resid = self._y - self._mu_a(self._X, self._t)
@@ -549,7 +544,7 @@ class LocalGPIS:
         if len(A) >= self.max_anchors:
             return
         if always or not A or np.min(((self._obs_pts[A] - x) ** 2).sum(1)) > self.anchor_spacing_m ** 2:
-            self._commit_anchors([i])
+            self._commit_anchor(i)
 
     def _owner(self, x: np.ndarray) -> _Leaf:
         """The leaf whose cell holds x (cells are half-open, closed at the root's top)."""
