@@ -638,7 +638,7 @@ class TouchPlanner:
         snapped = not bool(graph.segments_free(tip[None], graph.xyz[start][None])[0])
         lift = np.zeros((0, 3))  # 3D: where a snapped tip goes first, straight up (_lift_until_free)
         if snapped and dim == 3:
-            lift_xyz, lift_node = _lift_until_free(graph, tip)
+            lift_xyz, lift_node = _lift_until_free(graph, tip, finger_m)
             if lift_node >= 0:
                 lift, start, snapped = lift_xyz[None], lift_node, False
         lift_m = float(np.linalg.norm(lift[0] - tip)) if len(lift) else 0.0
@@ -765,17 +765,26 @@ class TouchPlanner:
         )
 
 
-def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray) -> tuple[np.ndarray, int]:
+def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray, room_m: float) -> tuple[np.ndarray, int]:
     """3D: the lowest point straight above ``tip`` (steps of the smallest lattice spacing) from which a
-    free segment reaches its nearest free node: (that point, the node), or (tip, −1) below the lattice
-    top. Why up: the vertical finger's rod fills the column above its tip, so that way is free whatever
-    the estimate says (a tip the estimate puts inside the object, e.g. in a hole it does not know)."""
+    free segment reaches its nearest free node: (that point, the node), or (tip, −1) when there is none
+    below the lattice top or the column may not be taken. Why up: the vertical finger's rod fills the
+    column above its tip, so that way is free whatever the estimate says (a tip the estimate puts inside
+    the object, e.g. in a hole it does not know). The rod is thinner than the tip's ball, though: a tip
+    outside the estimate goes up only where the column keeps the finger's room ``room_m`` from the
+    estimated surface (by distance), else it leaves sideways (the snap). Beside a wall the estimate grew
+    up past a lip, a lift grazing the wall met the lip's underside, backed off to where it began and
+    was planned again: 77 touches on one spot (gen3d-029, docs/benchmarks.md)."""
     lat = graph.lattice
     top = float(lat.axes[2][-1])
     h = float(np.min(lat.spacing_m))
     z = np.arange(float(tip[2]) + h, top + 0.5 * h, h)
     column = np.column_stack([np.full_like(z, tip[0]), np.full_like(z, tip[1]), z])
-    for q in column[graph.clearance_m(column) >= graph.margin_m]:  # the clearance of the column in one pass
+    ok = graph.clearance_m(column) >= graph.margin_m  # the clearance of the column in one pass
+    if float(graph.surface_distance_at(np.asarray(tip, dtype=float)[None])[0]) >= 0.0:  # outside the estimate
+        d = graph.surface_distance_at(column, max_m=room_m + 1e-3)
+        ok &= np.minimum.accumulate(np.concatenate([[np.inf], d[:-1]])) >= room_m - 1e-9  # below each point
+    for q in column[ok]:
         node = graph.nearest_node(q)
         if node >= 0 and bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
             return q, node
