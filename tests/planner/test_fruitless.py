@@ -124,15 +124,13 @@ def _post_map(n: int, centre_xy=(0.5, 0.0), radius_m=0.02, height_m=0.12) -> np.
     lat["mean"] = _post_distance(pts, centre_xy, radius_m, height_m)
     lat["variance"] = 1e-4
     lat["kind"] = KIND_LATTICE
-    t = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    side = [(np.cos(a), np.sin(a), 0.0, z) for a in t for z in (0.04, 0.08)]
-    top = [(0.0, 0.0, 1.0, height_m)]
-    cand = np.zeros(len(side) + len(top), VARIANCE_MAP_DTYPE)
-    for i, (nx, ny, nz, z) in enumerate(side + top):
-        r = radius_m if nz == 0.0 else 0.0
-        cand["x"][i], cand["y"][i], cand["z"][i] = centre_xy[0] + r * nx, centre_xy[1] + r * ny, z
-        cand["normal_x"][i], cand["normal_y"][i], cand["normal_z"][i] = nx, ny, nz
-        cand["variance"][i] = 1e-4 * (1 + i % 5)
+    a, z = (g.ravel() for g in np.meshgrid(np.linspace(0, 2 * np.pi, 16, endpoint=False), [0.04, 0.08]))
+    nrm = np.vstack([np.column_stack([np.cos(a), np.sin(a), np.zeros_like(a)]), [[0.0, 0.0, 1.0]]])
+    r = np.append(np.full(len(a), radius_m), 0.0)  # the side's 32, then the top's centre
+    cand = np.zeros(len(nrm), VARIANCE_MAP_DTYPE)
+    cand["x"], cand["y"], cand["z"] = centre_xy[0] + r * nrm[:, 0], centre_xy[1] + r * nrm[:, 1], np.append(z, height_m)
+    cand["normal_x"], cand["normal_y"], cand["normal_z"] = nrm.T
+    cand["variance"] = 1e-4 * (1 + np.arange(len(nrm)) % 5)
     cand["kind"] = KIND_CANDIDATE
     return np.concatenate([lat, cand])
 

@@ -783,7 +783,8 @@ def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray, room_m: float) -> t
     ok = graph.clearance_m(column) >= graph.margin_m  # the clearance of the column in one pass
     if float(graph.surface_distance_at(np.asarray(tip, dtype=float)[None])[0]) >= 0.0:  # outside the estimate
         d = graph.surface_distance_at(column, max_m=room_m + 1e-3)
-        ok &= np.minimum.accumulate(np.concatenate([[np.inf], d[:-1]])) >= room_m - 1e-9  # below each point
+        # the way up to each point keeps the finger's room (the point itself keeps the margin)
+        ok &= np.minimum.accumulate(np.concatenate([[np.inf], d[:-1]])) >= room_m - 1e-9
     for q in column[ok]:
         node = graph.nearest_node(q)
         if node >= 0 and bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
