@@ -111,7 +111,10 @@ def test_a_3d_tip_inside_the_estimate_leaves_straight_up():
     assert "lifted" not in planner.plan(m, np.array([0.35, 0.0, 0.2])).message
 
 
-def _post_map(n: int, centre_xy=(0.5, 0.0), radius_m=0.02, height_m=0.12) -> np.ndarray:
+POST_HEIGHT_M = 0.12
+
+
+def _post_map(n: int, centre_xy=(0.5, 0.0), radius_m=0.02, height_m=POST_HEIGHT_M) -> np.ndarray:
     """3D map of a post: mean = the exact signed distance to a capped vertical cylinder; candidates on its
     side (horizontal normals) and top."""
     from tactile_common.fields import KIND_LATTICE, VARIANCE_MAP_DTYPE
@@ -160,7 +163,7 @@ def test_a_3d_tip_beside_a_wall_leaves_it_before_going_up():
     first = res.path_xyz[1]
     assert np.hypot(*(first[:2] - tip[:2])) > 1e-3  # not straight up
     t = np.linspace(0.0, 1.0, 40)[:, None]
-    d = _post_distance(tip + t * (first - tip), centre, radius, 0.12)
+    d = _post_distance(tip + t * (first - tip), centre, radius, POST_HEIGHT_M)
     assert np.all(np.diff(d) >= -1e-6) and d[-1] >= room - 1e-3  # away from the wall, to the finger's room
 
 
@@ -173,4 +176,4 @@ def test_a_3d_tip_inside_the_estimate_is_still_lifted_beside_a_wall():
     res = planner.plan(m, tip)
     assert res.ok, res.message
     lift = res.path_xyz[1]
-    assert np.allclose(lift[:2], tip[:2]) and lift[2] > 0.12 and "lifted" in res.message
+    assert np.allclose(lift[:2], tip[:2]) and lift[2] > POST_HEIGHT_M and "lifted" in res.message

@@ -781,10 +781,10 @@ def _lift_until_free(graph: FreeSpaceGraph, tip: np.ndarray, room_m: float) -> t
     z = np.arange(float(tip[2]) + h, top + 0.5 * h, h)
     column = np.column_stack([np.full_like(z, tip[0]), np.full_like(z, tip[1]), z])
     ok = graph.clearance_m(column) >= graph.margin_m  # the clearance of the column in one pass
-    if float(graph.surface_distance_at(np.asarray(tip, dtype=float)[None])[0]) >= 0.0:  # outside the estimate
-        d = graph.surface_distance_at(column, max_m=room_m + 1e-3)
-        # the way up to each point keeps the finger's room (the point itself keeps the margin)
-        ok &= np.minimum.accumulate(np.concatenate([[np.inf], d[:-1]])) >= room_m - 1e-9
+    # the tip's and the column's distances in one query (beyond the room they read ±inf, signed)
+    d = graph.surface_distance_at(np.vstack([np.asarray(tip, dtype=float)[None], column]), max_m=room_m + 1e-3)
+    if d[0] >= 0.0:  # the tip is outside the estimate: the way up to each point keeps the finger's room
+        ok &= np.minimum.accumulate(np.concatenate([[np.inf], d[1:-1]])) >= room_m - 1e-9
     for q in column[ok]:
         node = graph.nearest_node(q)
         if node >= 0 and bool(graph.segments_free(q[None], graph.xyz[node][None])[0]):
